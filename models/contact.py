@@ -1,0 +1,135 @@
+"""Contact materials and the plant's contact configuration.
+
+Hydroelastic contact everywhere it matters: the hand's links and sensor pads, the movable
+object and the obstacles are *compliant* hydroelastic (they have a pressure field), the
+table is *rigid* hydroelastic. Pairs that cannot be resolved hydroelastically (the arm's
+links, which carry no hydroelastic properties, or rigid-rigid pairs) fall back to point
+contact: ``contact_model = "hydroelastic_with_fallback"``.
+
+The discrete time step and contact approximation are parameters of :class:`SimulationConfig`;
+the defaults were chosen by measurement (``cmanip bench timestep``, see
+``experiments/timestep_study.py``): see the docstring of :data:`DEFAULT_TIME_STEP_S`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pydrake.geometry import (
+    AddCompliantHydroelasticProperties,
+    AddContactMaterial,
+    AddRigidHydroelasticProperties,
+    ProximityProperties,
+)
+from pydrake.multibody.plant import CoulombFriction, MultibodyPlantConfig
+
+from models.config import Fields
+
+#: Discrete time step (s). Chosen by measurement on the demo push (``cmanip bench timestep``):
+#: 5 ms keeps the box's final pose within a millimetre of a 1 ms reference while running
+#: several times faster; 10 ms and above let the thin sensor pads tunnel.
+DEFAULT_TIME_STEP_S = 0.005
+
+
+@dataclass(frozen=True)
+class ContactMaterial:
+    """Contact properties of one geometry.
+
+    Attributes:
+        hydroelastic_modulus_pa: compliant hydroelastic modulus (Pa); ``None`` makes the
+            geometry rigid hydroelastic.
+        mu_static: static Coulomb friction coefficient (dimensionless, >= mu_dynamic).
+        mu_dynamic: dynamic Coulomb friction coefficient (dimensionless).
+        dissipation_s_per_m: Hunt-Crossley dissipation (s/m), used by the lagged/similar
+            discrete approximations.
+        relaxation_time_s: linear Kelvin-Voigt relaxation time (s), used by SAP.
+        resolution_hint_m: edge length (m) of the pressure-field tessellation of curved
+            shapes (cylinders, spheres); ignored by boxes and convex meshes.
+    """
+
+    hydroelastic_modulus_pa: float | None = 1.0e6
+    mu_static: float = 0.5
+    mu_dynamic: float = 0.5
+    dissipation_s_per_m: float = 5.0
+    relaxation_time_s: float = 0.01
+    resolution_hint_m: float = 0.01
+
+    def proximity_properties(self) -> ProximityProperties:
+        """The Drake ``ProximityProperties`` for a collision geometry of this material."""
+        props = ProximityProperties()
+        AddContactMaterial(
+            dissipation=self.dissipation_s_per_m,
+            point_stiffness=None,
+            friction=CoulombFriction(self.mu_static, self.mu_dynamic),
+            properties=props,
+        )
+        props.AddProperty("material", "relaxation_time", self.relaxation_time_s)
+        if self.hydroelastic_modulus_pa is None:
+            AddRigidHydroelasticProperties(self.resolution_hint_m, props)
+        else:
+            AddCompliantHydroelasticProperties(
+                self.resolution_hint_m, self.hydroelastic_modulus_pa, props
+            )
+        return props
+
+    @staticmethod
+    def from_fields(fields: Fields, default: ContactMaterial) -> ContactMaterial:
+        """Read optional overrides (``hydroelastic_modulus_pa`` (or ``rigid: true``),
+        ``mu_static``, ``mu_dynamic``) on top of ``default``."""
+        rigid = fields.boolean("rigid", False)
+        modulus = fields.number("hydroelastic_modulus_pa", default.hydroelastic_modulus_pa or 1e6,
+                                min=1e3, max=1e12)
+        mu_dynamic = fields.number("mu_dynamic", default.mu_dynamic, min=0.0, max=5.0)
+        mu_static = fields.number("mu_static", max(default.mu_static, mu_dynamic), min=0.0, max=5.0)
+        if mu_static < mu_dynamic:
+            raise fields.error("mu_static", f"{mu_static} must be >= mu_dynamic ({mu_dynamic})")
+        return ContactMaterial(
+            hydroelastic_modulus_pa=None if rigid else modulus,
+            mu_static=mu_static,
+            mu_dynamic=mu_dynamic,
+            dissipation_s_per_m=default.dissipation_s_per_m,
+            relaxation_time_s=default.relaxation_time_s,
+            resolution_hint_m=default.resolution_hint_m,
+        )
+
+
+#: Rubber-like sensor pads and finger links of the hand.
+HAND_MATERIAL = ContactMaterial(hydroelastic_modulus_pa=5.0e5, mu_static=0.5, mu_dynamic=0.5)
+#: Default for movable objects (hard plastic / cardboard-like).
+OBJECT_MATERIAL = ContactMaterial(hydroelastic_modulus_pa=2.0e6, mu_static=0.4, mu_dynamic=0.4)
+#: Obstacles on the table.
+OBSTACLE_MATERIAL = ContactMaterial(hydroelastic_modulus_pa=5.0e6, mu_static=0.5, mu_dynamic=0.5)
+#: The table top: rigid hydroelastic.
+TABLE_MATERIAL = ContactMaterial(hydroelastic_modulus_pa=None, mu_static=0.3, mu_dynamic=0.3)
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """How the world is simulated.
+
+    Attributes:
+        time_step_s: discrete plant step (s).
+        contact_approximation: Drake discrete contact approximation; one of
+            ``"sap"``, ``"lagged"``, ``"similar"`` (all support the hand's coupler
+            constraints and implicit PD control; TAMSI does not).
+    """
+
+    time_step_s: float = DEFAULT_TIME_STEP_S
+    contact_approximation: str = "lagged"
+
+    def __post_init__(self) -> None:
+        if not 1e-5 <= self.time_step_s <= 0.05:
+            raise ValueError(f"time_step_s={self.time_step_s} is outside [1e-5, 0.05] s")
+        if self.contact_approximation not in ("sap", "lagged", "similar"):
+            raise ValueError(
+                f"contact_approximation={self.contact_approximation!r} is not one of "
+                "sap, lagged, similar"
+            )
+
+    def plant_config(self) -> MultibodyPlantConfig:
+        """The Drake ``MultibodyPlantConfig`` for these settings."""
+        return MultibodyPlantConfig(
+            time_step=self.time_step_s,
+            contact_model="hydroelastic_with_fallback",
+            discrete_contact_approximation=self.contact_approximation,
+        )
