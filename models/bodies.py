@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from pydrake.geometry import Box, Convex, Cylinder, InMemoryMesh, Shape, Sphere
+from pydrake.geometry import Convex, GeometryId, InMemoryMesh, Shape
 from pydrake.common import MemoryFile
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
@@ -91,20 +91,15 @@ def add_geometry(
     name: str,
     material: ContactMaterial | None,
     rgba: Sequence[float],
-) -> None:
-    """Register a visual and (when ``material`` is given) a collision geometry on ``body``."""
+) -> GeometryId | None:
+    """Register a visual and (when ``material`` is given) a collision geometry on ``body``.
+
+    Returns:
+        The collision geometry's id (``None`` without a material).
+    """
+    collision = None
     if material is not None:
-        plant.RegisterCollisionGeometry(body, X_BG, shape, name, material.proximity_properties())
+        collision = plant.RegisterCollisionGeometry(body, X_BG, shape, name,
+                                                    material.proximity_properties())
     plant.RegisterVisualGeometry(body, X_BG, shape, name, np.asarray(rgba, dtype=float))
-
-
-def shape_from_primitive(kind: str, dims: Sequence[float]) -> Shape:
-    """``box`` (x, y, z) m, ``cylinder`` (radius, length) m or ``sphere`` (radius,) m."""
-    if kind == "box":
-        return Box(*dims)
-    if kind == "cylinder":
-        return Cylinder(*dims)
-    if kind == "sphere":
-        return Sphere(*dims)
-    raise ValueError(f"unknown primitive {kind!r}; allowed: box, cylinder, sphere")
-
+    return collision

@@ -87,6 +87,16 @@ def builtin_names(kind: str) -> list[str]:
 _REQUIRED = object()
 
 
+def _scientific(value: Any) -> Any:
+    """``'1.0e8'`` -> ``1e8``; anything else unchanged."""
+    if isinstance(value, str) and "e" in value.lower():
+        try:
+            return float(value)
+        except ValueError:
+            return value
+    return value
+
+
 class Fields:
     """A typed, validated view of one YAML mapping, remembering where it came from.
 
@@ -137,10 +147,15 @@ class Fields:
         max: float = math.inf,
         integer: bool = False,
     ) -> float:
-        """A finite number in [min, max] (an int when ``integer``)."""
+        """A finite number in [min, max] (an int when ``integer``).
+
+        Strings in scientific notation such as ``1.0e8`` are accepted: PyYAML (YAML 1.1)
+        reads them as strings unless written ``1.0e+8``.
+        """
         value = self._get(name, default)
         if value is default and default is not _REQUIRED:
             return value
+        value = _scientific(value)
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.error(name, f"expected a number, got {value!r}")
         if integer and not isinstance(value, int):

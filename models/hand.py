@@ -317,11 +317,10 @@ class _HandBuilder:
                           Box(w, t / 2, seg), name, name)
 
     def _collide(self, body, X_BG, shape, name, patch: str | None) -> None:
-        add_geometry(self.plant, body, X_BG, shape, name, self.material,
-                     SENSOR_RGBA if patch else HAND_RGBA)
+        geometry = add_geometry(self.plant, body, X_BG, shape, name, self.material,
+                                SENSOR_RGBA if patch else HAND_RGBA)
         if patch is not None:
-            ids = self.plant.GetCollisionGeometriesForBody(body)
-            self.patch_geometry[patch] = ids[-1]
+            self.patch_geometry[patch] = geometry
 
     def _revolute(self, name, parent, child, X_PF, axis, limits) -> RevoluteJoint:
         frame = self.plant.AddFrame(FixedOffsetFrame(f"{name}_parent", parent.body_frame(), X_PF))

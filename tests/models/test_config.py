@@ -1,0 +1,131 @@
+"""Loading scenes and objects: by name, by path, and clear errors for malformed files."""
+
+import textwrap
+
+import numpy as np
+import pytest
+
+from models.config import ConfigError
+from models.objects import ObjectSpec
+from models.scene import SceneSpec
+from models.tactile import TactileLayout
+
+GOOD_SCENE = textwrap.dedent("""\
+    arm: right
+    table: {top_height_m: 0.735, size_m: [0.74, 1.85], center_xy_m: [0.9, 0.0]}
+    object:
+      name: box
+      pose: {x_m: 0.84, y_m: -0.25, theta_deg: 0}
+    hand:
+      height_above_table_m: 0.06
+      start: {x_m: 0.68, y_m: -0.25, theta_deg: 0}
+    """)
+
+
+@pytest.mark.parametrize("name", ["empty", "right_obstacles", "left_obstacles", "cul_de_sac"])
+def test_builtin_scenes_load(name):
+    scene = SceneSpec.load(name)
+    assert scene.name == name
+    assert scene.table.contains(scene.object_pose.x, scene.object_pose.y)
+
+
+def test_cul_de_sac_adds_a_box_to_the_right_obstacles():
+    right = {o.spec.name for o in SceneSpec.load("right_obstacles").obstacles}
+    dead_end = {o.spec.name for o in SceneSpec.load("cul_de_sac").obstacles}
+    assert right < dead_end and len(dead_end - right) == 1
+
+
+def test_scene_by_path_with_object_override(tmp_path):
+    path = tmp_path / "mine.yaml"
+    path.write_text(GOOD_SCENE)
+    scene = SceneSpec.load(path, object_override="bottle")
+    assert scene.name == "mine" and scene.object.shape == "cylinder"
+
+
+def write(tmp_path, text):
+    path = tmp_path / "scene.yaml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("mutation,field,message", [
+    (("height_above_table_m: 0.06", "height_above_table_m: high"), "hand.height_above_table_m",
+     "expected a number"),
+    (("arm: right", "arm: middle"), "arm", "not one of right, left"),
+    (("theta_deg: 0}\nhand", "theta_deg: 0, z_m: 1}\nhand"), "object.pose.z_m", "unknown field"),
+    (("size_m: [0.74, 1.85]", "size_m: [0.74]"), "table.size_m", "list of 2 numbers"),
+    (("top_height_m: 0.735", "top_height_m: -1"), "table.top_height_m", "outside the allowed"),
+    (("x_m: 0.84", "x_m: 3.0"), "object.pose", "not on the table"),
+    (("name: box", "name: teapot"), "", "unknown objects name"),
+])
+def test_malformed_scene_names_file_and_field(tmp_path, mutation, field, message):
+    path = write(tmp_path, GOOD_SCENE.replace(*mutation, 1))
+    with pytest.raises(ConfigError) as err:
+        SceneSpec.load(path)
+    assert message in str(err.value)
+    if field:
+        assert str(path) in str(err.value) and f"'{field}'" in str(err.value)
+
+
+def test_missing_required_field(tmp_path):
+    path = write(tmp_path, GOOD_SCENE.replace("hand:", "hands:"))
+    with pytest.raises(ConfigError, match="field 'hand': required field is missing"):
+        SceneSpec.load(path)
+
+
+def test_not_yaml_and_not_a_mapping(tmp_path):
+    with pytest.raises(ConfigError, match="not valid YAML"):
+        SceneSpec.load(write(tmp_path, "arm: [right\n"))
+    with pytest.raises(ConfigError, match="expected a mapping"):
+        SceneSpec.load(write(tmp_path, "- just\n- a list\n"))
+
+
+def test_unknown_scene_name_lists_builtins():
+    with pytest.raises(ConfigError, match="built-in: cul_de_sac, empty, left_obstacles"):
+        SceneSpec.load("kitchen")
+
+
+@pytest.mark.parametrize("name,shape", [("box", "box"), ("bottle", "cylinder"),
+                                        ("rect1", "box"), ("ellip2", "polygon"),
+                                        ("butter", "polygon")])
+def test_builtin_objects(name, shape):
+    spec = ObjectSpec.load(name)
+    assert spec.shape == shape
+    footprint = spec.footprint()
+    # Counter-clockwise, centred footprints.
+    x, y = footprint[:, 0], footprint[:, 1]
+    assert 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0
+    assert abs(footprint.mean(axis=0)).max() < 1e-9 or shape == "polygon"
+
+
+def test_ellip2_area_close_to_the_ellipse():
+    footprint = ObjectSpec.load("ellip2").footprint()
+    x, y = footprint[:, 0], footprint[:, 1]
+    area = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+    assert area == pytest.approx(np.pi * 0.105 / 2 * 0.1309 / 2, rel=0.01)
+
+
+def test_user_polygon_object_is_recentred(tmp_path):
+    path = tmp_path / "wedge.yaml"
+    path.write_text("shape: polygon\nvertices_m: [[0, 0], [0.1, 0], [0, 0.1]]\n"
+                    "height_m: 0.05\nmass_kg: 0.2\n")
+    spec = ObjectSpec.load(path)
+    np.testing.assert_allclose(np.mean(spec.footprint(), axis=0), 0.0, atol=1e-12)
+
+
+def test_non_convex_polygon_rejected(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("shape: polygon\nvertices_m: [[0, 0], [0.1, 0], [0.02, 0.02], [0, 0.1]]\n"
+                    "height_m: 0.05\n")
+    with pytest.raises(ConfigError, match="'vertices_m': the polygon must be convex"):
+        ObjectSpec.load(path)
+
+
+def test_tactile_layout_errors(tmp_path):
+    path = tmp_path / "layout.yaml"
+    path.write_text("fingers: [f1, f4]\n")
+    with pytest.raises(ConfigError, match="'fingers'"):
+        TactileLayout.load(path)
+    path.write_text("palm_strips: 2.5\n")
+    with pytest.raises(ConfigError, match="'palm_strips': expected an integer"):
+        TactileLayout.load(path)
