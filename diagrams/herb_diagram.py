@@ -14,7 +14,12 @@ from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams
 from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, TrajectorySource, VectorLogSink
+from pydrake.systems.primitives import (
+    ConstantVectorSource,
+    LogVectorOutput,
+    TrajectorySource,
+    VectorLogSink,
+)
 from pydrake.trajectories import PiecewisePolynomial
 
 from diagrams.tactile_sensor import TactileSensor

@@ -114,6 +114,10 @@ def run_straight_push(
     context = simulation.initial_context(trajectory.value(0.0).ravel())
     simulator = Simulator(simulation.diagram, context)
     simulator.set_target_realtime_rate(0.0)
+    if meshcat is not None:
+        hand = scene.hand_start
+        meshcat.SetCameraPose(camera_in_world=[hand.x + 0.9, hand.y + 1.0, 1.5],
+                              target_in_world=[hand.x + 0.2, hand.y, scene.table.top_height_m])
     if simulation.visualizer is not None:
         simulation.visualizer.StartRecording(False)
     simulator.Initialize()
@@ -161,7 +165,7 @@ def _outcome(simulation: HerbSimulation, context, scene, push_distance_m, sim, s
         "object_displacement_m": float(np.linalg.norm(final[:2] - initial[:2])),
         "palm_final_error_m": float(np.linalg.norm(palm.translation() - commanded.translation())),
         "tactile_period_s": simulation.tactile.period_s,
-        "contact_counts": {n: int(c) for n, c in zip(names, contact.sum(axis=0))},
+        "contact_counts": {n: int(c) for n, c in zip(names, contact.sum(axis=0), strict=True)},
     }
     return PushOutcome(summary, contact_log.sample_times(), names, contact, force_log.data().T,
                        html)

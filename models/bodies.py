@@ -10,8 +10,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from pydrake.geometry import Convex, GeometryId, InMemoryMesh, Shape
 from pydrake.common import MemoryFile
+from pydrake.geometry import Convex, GeometryId, InMemoryMesh, Shape
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import (

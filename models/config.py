@@ -232,7 +232,8 @@ class Fields:
         value = self._get(name, default)
         if not isinstance(value, list):
             raise self.error(name, f"expected a list, got {value!r}")
-        return [Fields(item, self.source, self._path(f"{name}[{i}]")) for i, item in enumerate(value)]
+        return [Fields(item, self.source, self._path(f"{name}[{i}]"))
+                for i, item in enumerate(value)]
 
     def done(self) -> None:
         """Reject any key that was never read."""

@@ -11,9 +11,10 @@ Each solve runs in two stages, because SNOPT with the non-convex minimum-distanc
 constraint fails from poor seeds far more often than without it:
 (1) pose constraints only, from the seed, minimising the distance to the seed; (2) only
 when (1)'s answer lacks clearance: pose plus clearance, from (1)'s answer, staying near it.
-Every answer is verified by forward kinematics and a distance query, so a chain of nearby poses (a push, a lattice)
-warm-starts into a smooth joint path. A target that stage 2 cannot satisfy is reported
-as infeasible with the reason; it is never clipped to a nearby reachable pose.
+Every answer is verified by forward kinematics and a distance query. A chain of nearby
+poses (a push, a lattice) warm-starts into a smooth joint path. A target that neither
+stage satisfies is reported as infeasible with the reason; it is never clipped to a
+nearby reachable pose.
 """
 
 from __future__ import annotations

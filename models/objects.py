@@ -134,7 +134,11 @@ class ObjectSpec:
 
 
 def add_object(
-    plant: MultibodyPlant, spec: ObjectSpec, instance: ModelInstanceIndex, *, name: str | None = None
+    plant: MultibodyPlant,
+    spec: ObjectSpec,
+    instance: ModelInstanceIndex,
+    *,
+    name: str | None = None,
 ) -> RigidBody:
     """Add ``spec`` as a body (free unless the caller welds it) with collision and visual."""
     body = plant.AddRigidBody(name or spec.name, instance, spec.spatial_inertia())

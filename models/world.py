@@ -107,6 +107,7 @@ def populate_world(
     table_top = scene.table.top_height_m
     env = plant.AddModelInstance("environment")
     _add_table(plant, scene, env)
+    _add_herb_body(plant, mount, env)
     for obstacle in scene.obstacles:
         body = add_object(plant, obstacle.spec, env, name=obstacle.spec.name)
         p = obstacle.pose
@@ -151,6 +152,17 @@ def _filter_collisions(plant: MultibodyPlant, scene_graph: SceneGraph,
     manager.Apply(CollisionFilterDeclaration().ExcludeWithin(wrist))
     manager.Apply(CollisionFilterDeclaration().ExcludeBetween(hand_geometry, wrist))
     manager.Apply(CollisionFilterDeclaration().ExcludeWithin(shoulder))
+
+
+def _add_herb_body(plant: MultibodyPlant, mount: HerbMount, instance) -> None:
+    """HERB's torso: a column from the floor to just below the arm mounts, behind the
+    shoulders (a collision obstacle for the arm as well as a visual)."""
+    body = plant.AddRigidBody("herb_torso", instance)
+    top = mount.shoulder_height_m - 0.2
+    size = (0.35, 2 * mount.shoulder_lateral_offset_m + 0.1, top)
+    X = RigidTransform([mount.shoulder_forward_offset_m - 0.55, 0.0, top / 2])
+    add_geometry(plant, body, X, Box(*size), "herb_torso", TABLE_MATERIAL, (0.2, 0.2, 0.22, 1.0))
+    plant.WeldFrames(plant.world_frame(), body.body_frame())
 
 
 def _add_table(plant: MultibodyPlant, scene: SceneSpec, instance: ModelInstanceIndex) -> None:
