@@ -7,8 +7,8 @@ links, which carry no hydroelastic properties, or rigid-rigid pairs) fall back t
 contact: ``contact_model = "hydroelastic_with_fallback"``.
 
 The discrete time step and contact approximation are parameters of :class:`SimulationConfig`;
-the defaults were chosen by measurement (``cmanip bench timestep``, see
-``experiments/timestep_study.py``): see the docstring of :data:`DEFAULT_TIME_STEP_S`.
+the default step was chosen by measurement (``cmanip bench timestep``,
+``experiments/timestep_bench.py``): see the comment on :data:`DEFAULT_TIME_STEP_S`.
 """
 
 from __future__ import annotations
@@ -25,9 +25,19 @@ from pydrake.multibody.plant import CoulombFriction, MultibodyPlantConfig
 
 from models.config import Fields
 
-#: Discrete time step (s). Chosen by measurement on the demo push (``cmanip bench timestep``):
-#: 5 ms keeps the box's final pose within a millimetre of a 1 ms reference while running
-#: several times faster; 10 ms and above let the thin sensor pads tunnel.
+#: Discrete time step (s), chosen by ``cmanip bench timestep`` (demo push, box 0.3 m at
+#: 5 cm/s; baseline 1 ms; measured 2026-11-22 on the 2-core CI machine):
+#:
+#:   step  real-time factor  box final pose vs 1 ms   patch force RMS vs 1 ms
+#:   1 ms  0.58              -                        -
+#:   2 ms  1.22              0.0 mm, 0.00 deg         0.002 N
+#:   5 ms  1.90              0.1 mm, 0.01 deg         0.007 N
+#:   10 ms 4.11              0.2 mm, 0.02 deg         0.014 N
+#:   20 ms 5.24              0.3 mm, 0.02 deg         0.027 N
+#:
+#: Every step up to 20 ms reproduces this slow, quasi-static push. We take 5 ms: faster
+#: than real time with a margin of 4x below the steps whose force error approaches the
+#: sensor noise (0.05 N), for stiffer objects (seed 003's steel, 1e8 Pa) and faster pushes.
 DEFAULT_TIME_STEP_S = 0.005
 
 
@@ -83,6 +93,7 @@ class ContactMaterial:
         mu_static = fields.number("mu_static", max(default.mu_static, mu_dynamic), min=0.0, max=5.0)
         if mu_static < mu_dynamic:
             raise fields.error("mu_static", f"{mu_static} must be >= mu_dynamic ({mu_dynamic})")
+        fields.done()
         return ContactMaterial(
             hydroelastic_modulus_pa=None if rigid else modulus,
             mu_static=mu_static,
