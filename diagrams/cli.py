@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         for kind in ("scenes", "objects", "tactile"):
             print(f"{kind}: {', '.join(builtin_names(kind))}")
         return 0
-    except ConfigError as err:
+    except (ConfigError, ValueError) as err:
         print(f"cmanip: error: {err}", file=sys.stderr)
         return 2
 
@@ -73,6 +73,10 @@ def _simulate(args: argparse.Namespace) -> int:
     from models.scene import SceneSpec
     from models.tactile import TactileLayout
 
+    if not 0.0 < args.push_distance <= 2.0:
+        raise ValueError(f"--push-distance {args.push_distance} m is outside (0, 2] m")
+    if not 0.0 < args.hand_speed <= 1.0:
+        raise ValueError(f"--hand-speed {args.hand_speed} m/s is outside (0, 1] m/s")
     scene = SceneSpec.load(args.scene, object_override=args.object)
     layout = TactileLayout.load(args.tactile)
     sim = SimulationConfig() if args.time_step is None else SimulationConfig(args.time_step)

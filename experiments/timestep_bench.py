@@ -3,8 +3,9 @@
 Runs the demo push (empty scene, box, 0.3 m at 5 cm/s) at several discrete time steps and
 reports, per step, the median real-time factor over ``repeats`` runs, the box's final
 pose difference from the smallest step (position mm, orientation deg) and the RMS
-difference of the tactile patch forces from the smallest step's (N, same noise draws). The smallest step
-is the baseline of the accuracy columns; the speed column is a ratio against its speed.
+difference of the tactile patch forces from the smallest step's (N, same noise draws).
+The smallest step is the baseline of the accuracy columns; the speed column is a ratio
+against its speed.
 This is the measurement behind :data:`models.contact.DEFAULT_TIME_STEP_S`.
 """
 

@@ -174,8 +174,3 @@ def _add_table(plant: MultibodyPlant, scene: SceneSpec, instance: ModelInstanceI
     cx, cy = table.center_xy_m
     plant.WeldFrames(plant.world_frame(), body.body_frame(),
                      RigidTransform([cx, cy, table.top_height_m - table.thickness_m / 2]))
-
-
-def default_arm_positions(world: World) -> np.ndarray:
-    """HERB's home configuration (model convention) of the scene's arm, shape (7,)."""
-    return world.mount.home[world.scene.arm].copy()

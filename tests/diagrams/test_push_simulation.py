@@ -61,3 +61,14 @@ def test_infeasible_push_is_reported():
 def test_cli_reports_bad_scene(tmp_path, capsys):
     assert main(["simulate", "--scene", "kitchen", "--out", str(tmp_path)]) == 2
     assert "unknown scenes name" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("flag,value,message", [
+    ("--push-distance", "-0.1", "--push-distance -0.1 m is outside"),
+    ("--hand-speed", "5", "--hand-speed 5.0 m/s is outside"),
+    ("--time-step", "1.0", "time_step_s=1.0 is outside"),
+    ("--tactile", "braille", "unknown tactile name"),
+])
+def test_cli_reports_bad_options(tmp_path, capsys, flag, value, message):
+    assert main(["simulate", flag, value, "--out", str(tmp_path), "--no-progress"]) == 2
+    assert message in capsys.readouterr().err
