@@ -3,7 +3,9 @@
 Subcommands:
     simulate   push an object straight ahead in a scene; writes replay.html, summary.json,
                tactile.png.
-    bench      measurements (``bench timestep``: accuracy and speed per plant time step).
+    bench      measurements (``bench timestep``: accuracy and speed per plant time step;
+               ``bench mpf``: filter update times and the pushing model's throughput).
+    experiment studies that reproduce the seeds (``experiment mpf``: thesis sec. 4.3).
     scenes     list the built-in scenes, objects and tactile layouts.
 
 Studies (``experiments/``) are imported lazily, only by the subcommands that run them.
@@ -44,6 +46,27 @@ def main(argv: list[str] | None = None) -> int:
     step.add_argument("--repeats", type=int, default=3)
     step.add_argument("--json", type=Path, default=None)
 
+    mpf_bench = bench_kinds.add_parser("mpf", help="CPF/MPF update times, pushing throughput")
+    mpf_bench.add_argument("--repeats", type=int, default=30, help="timed updates per filter")
+    mpf_bench.add_argument("--seed", type=int, default=0)
+    mpf_bench.add_argument("--json", type=Path, default=None)
+
+    experiment = commands.add_parser("experiment", help="studies that reproduce the seeds")
+    studies = experiment.add_subparsers(dest="study", required=True)
+    mpf = studies.add_parser("mpf", help="CPF vs MPF and the manifold representations")
+    mpf.add_argument("--part", default="compare",
+                     choices=["compare", "resolution", "rate", "representations", "mixing",
+                              "all"])
+    mpf.add_argument("--trials", type=int, default=100)
+    mpf.add_argument("--seed", type=int, default=0)
+    mpf.add_argument("--workers", type=int, default=1, help="processes")
+    mpf.add_argument("--object", default="box", help="object name or path to a YAML file")
+    mpf.add_argument("--sensors", default="medium",
+                     help="planar sensor layout (low, medium, high or a YAML path)")
+    mpf.add_argument("--push-distance", type=float, default=0.5, help="hand travel (m)")
+    mpf.add_argument("--out", type=Path, required=True)
+    mpf.add_argument("--no-progress", action="store_true")
+
     commands.add_parser("scenes", help="list built-in scenes, objects and tactile layouts")
 
     args = parser.parse_args(argv)
@@ -57,12 +80,48 @@ def main(argv: list[str] | None = None) -> int:
             if args.json:
                 args.json.write_text(json.dumps(report, indent=2) + "\n")
             return 0
-        for kind in ("scenes", "objects", "tactile"):
+        if args.command == "bench" and args.bench == "mpf":
+            from experiments.mpf_bench import run_mpf_bench
+
+            report = run_mpf_bench(repeats=args.repeats, seed=args.seed)
+            if args.json:
+                args.json.write_text(json.dumps(report, indent=2) + "\n")
+            return 0
+        if args.command == "experiment":
+            return _experiment_mpf(args)
+        for kind in ("scenes", "objects", "tactile", "planar_sensors"):
             print(f"{kind}: {', '.join(builtin_names(kind))}")
         return 0
     except (ConfigError, ValueError) as err:
         print(f"cmanip: error: {err}", file=sys.stderr)
         return 2
+
+
+def _experiment_mpf(args: argparse.Namespace) -> int:
+    from experiments.mpf_study import TrialSettings, run_study
+    from models.objects import ObjectSpec
+    from models.planar.hand import PlanarSensorLayout
+
+    if args.trials < 2 or args.workers < 1:
+        raise ValueError("--trials must be >= 2 and --workers >= 1")
+    if not 0.0 < args.push_distance <= 2.0:
+        raise ValueError(f"--push-distance {args.push_distance} m is outside (0, 2] m")
+    ObjectSpec.load(args.object)  # fail early, with the file and field, on a bad input
+    PlanarSensorLayout.load(args.sensors)
+    base = TrialSettings(object=args.object, sensors=args.sensors,
+                         push_distance_m=args.push_distance)
+    summary = run_study(args.part, base, args.trials, args.seed, args.workers, args.out,
+                        progress=not args.no_progress)
+    parts = summary["parts"] if args.part == "all" else {args.part: summary}
+    for name, part in parts.items():
+        print(f"{name}:")
+        for label, entry in part["filters"].items():
+            fail = entry.get("sampling_failure_rate")
+            extra = f", sampling failures {fail:.0%}" if fail is not None else ""
+            print(f"  {label:28s} post-contact RMSE {entry['post_contact_rmse_cm']:.2f} cm, "
+                  f"{entry['post_contact_rmse_deg']:.1f} deg{extra}")
+    print(f"wrote {args.out}/summary.json and figures")
+    return 0
 
 
 def _simulate(args: argparse.Namespace) -> int:

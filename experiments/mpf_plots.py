@@ -1,0 +1,134 @@
+"""Figures of the MPF study (thesis Figs. 4.6-4.9), 95 % confidence intervals throughout."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from experiments.mpf_study import aligned, summarise  # noqa: E402
+
+HAND_SPEED_M_PER_S = 0.01
+
+
+def plot_part(part: str, runs: list, out: Path) -> list[str]:
+    """Write the part's PNGs into ``out``; return their file names."""
+    if part in ("compare", "representations"):
+        names = [_rmse_over_time(runs[0], out / f"{part}_rmse.png")]
+        if part == "representations":
+            names.append(_failure_rates(runs[0], out / "representations_failures.png"))
+        return names
+    if part == "resolution":
+        return [_post_contact_by(runs, "sensors", "sensor layout", out / "resolution.png")]
+    if part == "rate":
+        return [_post_contact_by(runs, "update_interval_m", "travel between updates (mm)",
+                                 out / "rate.png", scale=1000)]
+    if part == "mixing":
+        return [_mixing(runs[0], out / "mixing.png")]
+    raise ValueError(part)
+
+
+def _rmse_over_time(run, path: Path) -> str:
+    condition, results = run
+    dt = condition.settings.update_interval_m / HAND_SPEED_M_PER_S
+    fig, axes = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    for f, spec in enumerate(condition.filters):
+        for ax, which, scale in ((axes[0], "m", 100.0), (axes[1], "rad", np.rad2deg(1.0))):
+            t, mean, ci = aligned(results, f, which)
+            style = "--" if spec.kind == "cpf" else "-"
+            ax.plot(t * dt, mean * scale, style, label=spec.label)
+            ax.fill_between(t * dt, (mean - ci) * scale, (mean + ci) * scale, alpha=0.2)
+    axes[0].set_ylabel("position RMSE (cm)")
+    axes[1].set_ylabel("orientation RMSE (deg)")
+    axes[1].set_xlabel("time since first contact (s)")
+    for ax in axes:
+        ax.axvline(0.0, color="k", lw=0.5)
+        ax.grid(alpha=0.3)
+    axes[0].legend()
+    touched = sum(r.contact_index is not None for r in results)
+    axes[0].set_title(f"{condition.name}: {touched} of {len(results)} trials made contact "
+                      "(95% CI)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path.name
+
+
+def _failure_rates(run, path: Path) -> str:
+    condition, results = run
+    summary = summarise(condition, results)["filters"]
+    labels = [k for k, v in summary.items() if "sampling_failure_rate" in v]
+    touched = [r for r in results if r.contact_index is not None]
+    rates, cis = [], []
+    for label in labels:
+        f = [s.label for s in condition.filters].index(label)
+        per_trial = []
+        for r in touched:
+            obs = r.contact_observed[f, r.contact_index:]
+            if obs.sum():
+                per_trial.append(r.sampling_failed[f, r.contact_index:].sum() / obs.sum())
+        per_trial = np.array(per_trial)
+        rates.append(per_trial.mean() * 100 if len(per_trial) else np.nan)
+        cis.append(1.96 * per_trial.std(ddof=1) / np.sqrt(len(per_trial)) * 100
+                   if len(per_trial) > 1 else 0.0)
+    fig, ax = plt.subplots(figsize=(5, 4))
+    ax.bar(labels, rates, yerr=cis, capsize=4, color="tab:orange")
+    ax.set_ylabel("dual sampling failures (% of contact updates)")
+    ax.set_title("sampling failures (95% CI over trials)")
+    ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path.name
+
+
+def _post_contact_by(runs, key: str, xlabel: str, path: Path, scale: float = 1.0) -> str:
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    xs = [c.extra[key] for c, _ in runs]
+    positions = np.arange(len(xs))
+    for spec in runs[0][0].filters:
+        for ax, field, unit in ((axes[0], "post_contact_rmse_cm", "cm"),
+                                (axes[1], "post_contact_rmse_deg", "deg")):
+            means = [summarise(c, r)["filters"][spec.label][field] for c, r in runs]
+            cis = [summarise(c, r)["filters"][spec.label][field + "_ci95"] for c, r in runs]
+            ax.errorbar(positions, means, yerr=cis, marker="o", capsize=4, label=spec.label)
+            ax.set_ylabel(f"post-contact RMSE ({unit})")
+    for ax in axes:
+        ax.set_xticks(positions, [f"{x * scale:g}" if isinstance(x, float) else str(x)
+                                  for x in xs])
+        ax.set_xlabel(xlabel)
+        ax.grid(alpha=0.3)
+    axes[0].legend()
+    fig.suptitle("post-contact RMSE (95% CI)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path.name
+
+
+def _mixing(run, path: Path) -> str:
+    condition, results = run
+    summary = summarise(condition, results)["filters"]
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    mixes = [s for s in condition.filters if s.kind != "cpf"]
+    phis = [s.mixing_rate for s in mixes]
+    for ax, field, unit in ((axes[0], "post_contact_rmse_cm", "cm"),
+                            (axes[1], "post_contact_rmse_deg", "deg")):
+        means = [summary[s.label][field] for s in mixes]
+        cis = [summary[s.label][field + "_ci95"] for s in mixes]
+        ax.errorbar(phis, means, yerr=cis, marker="o", capsize=4, label="MPF-AM")
+        ax.axhline(summary["cpf"][field], ls=":", color="k", label="CPF (phi = 0)")
+        ax.set_xscale("log")
+        ax.set_xlabel("mixing rate phi")
+        ax.set_ylabel(f"post-contact RMSE ({unit})")
+        ax.grid(alpha=0.3)
+    axes[0].legend()
+    fig.suptitle("MPF-AM against mixing rate (95% CI)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path.name
