@@ -67,6 +67,12 @@ def main(argv: list[str] | None = None) -> int:
     mpf.add_argument("--out", type=Path, required=True)
     mpf.add_argument("--no-progress", action="store_true")
 
+    pushval = studies.add_parser("pushval",
+                                 help="planar pushing model vs Drake on 20 straight pushes")
+    pushval.add_argument("--push-distance", type=float, default=0.15, help="hand travel (m)")
+    pushval.add_argument("--out", type=Path, required=True)
+    pushval.add_argument("--no-progress", action="store_true")
+
     commands.add_parser("scenes", help="list built-in scenes, objects and tactile layouts")
 
     args = parser.parse_args(argv)
@@ -87,6 +93,8 @@ def main(argv: list[str] | None = None) -> int:
             if args.json:
                 args.json.write_text(json.dumps(report, indent=2) + "\n")
             return 0
+        if args.command == "experiment" and args.study == "pushval":
+            return _experiment_pushval(args)
         if args.command == "experiment":
             return _experiment_mpf(args)
         for kind in ("scenes", "objects", "tactile", "planar_sensors"):
@@ -121,6 +129,26 @@ def _experiment_mpf(args: argparse.Namespace) -> int:
             print(f"  {label:28s} post-contact RMSE {entry['post_contact_rmse_cm']:.2f} cm, "
                   f"{entry['post_contact_rmse_deg']:.1f} deg{extra}")
     print(f"wrote {args.out}/summary.json and figures")
+    return 0
+
+
+def _experiment_pushval(args: argparse.Namespace) -> int:
+    from experiments.push_validation import run_push_validation
+
+    if not 0.0 < args.push_distance <= 0.4:
+        raise ValueError(f"--push-distance {args.push_distance} m is outside (0, 0.4] m")
+    s = run_push_validation(args.out, push_distance_m=args.push_distance,
+                            progress=not args.no_progress)
+    for case in s["cases"]:
+        print(f"  y {case['lateral_offset_m']:+.2f} m, theta {case['orientation_deg']:+5.0f} deg: "
+              f"rotation Drake {case['rotation_drake_deg']:+6.1f} deg, planar "
+              f"{case['rotation_planar_deg']:+6.1f} deg; position difference "
+              f"{case['position_difference_m'] * 100:.1f} cm")
+    print(f"rotation direction agrees in {s['rotation_direction_agreement']} of "
+          f"{s['case_count']} cases; median position difference "
+          f"{s['position_difference_m_median'] * 100:.1f} cm, median rotation difference "
+          f"{s['rotation_difference_deg_median']:.1f} deg")
+    print(f"wrote {args.out}/summary.json and push_validation.png")
     return 0
 
 

@@ -31,24 +31,42 @@ from models.planar.observation import observation_key, observation_keys
 from models.planar.world import PlanarWorld
 
 
-def _label_log_likelihood(world: PlanarWorld, keys: np.ndarray, observation: np.ndarray,
-                          contact: np.ndarray | None = None) -> np.ndarray:
-    """log p(o | s) from stored noise-free reading keys (all states in contact)."""
-    sensing = world.sensing
-    match = keys == observation_key(observation)
-    wrong = np.log(sensing.error_rate / (2.0 ** sensing.sensor_count - 1.0))
-    ll = np.where(match, np.log1p(-sensing.error_rate), wrong)
-    if contact is not None:  # states off the hand: only the all-false reading is possible
-        ll = np.where(contact, ll, 0.0 if not np.any(observation) else -np.inf)
-    return ll
+class KeyedSampler:
+    """Draws elements in proportion to ``mass x p(o | element)`` for a reading ``o``.
 
+    Every element (a manifold piece or a stored state) has a non-negative ``mass`` (its
+    length, 1, or a density correction) and the key of its noise-free reading. Under the
+    observation model, p(o | s) is ``1 - error_rate`` where the key equals o's and
+    ``error_rate / (2^S - 1)`` elsewhere, so a draw first picks "matching" or "not" by their
+    total weights, then an element by mass within that set (binary search on cumulative
+    mass): O(n log N) per draw of n, without touching all N elements.
+    """
 
-def _draw(log_weight: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
-    finite = np.isfinite(log_weight)
-    if not np.any(finite):
-        return rng.integers(0, len(log_weight), n)
-    p = np.exp(log_weight - log_weight[finite].max())
-    return rng.choice(len(p), size=n, p=p / p.sum())
+    def __init__(self, keys: np.ndarray, mass: np.ndarray, error_rate: float,
+                 sensor_count: int):
+        order = np.argsort(keys, kind="stable")
+        self.order = order
+        self.keys = keys[order]
+        self.cumulative = np.concatenate([[0.0], np.cumsum(mass[order])])
+        self.p_match = 1.0 - error_rate
+        self.p_wrong = error_rate / (2.0 ** sensor_count - 1.0)
+
+    def draw(self, observation: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+        """Indices (n,) into the original element order."""
+        key = observation_key(observation)
+        a = int(np.searchsorted(self.keys, key, side="left"))
+        b = int(np.searchsorted(self.keys, key, side="right"))
+        total = self.cumulative[-1]
+        matched = self.cumulative[b] - self.cumulative[a]
+        others = total - matched
+        w_match, w_other = self.p_match * matched, self.p_wrong * others
+        n_match = rng.binomial(n, w_match / (w_match + w_other)) if w_match > 0 else 0
+        position = np.empty(n)
+        position[:n_match] = self.cumulative[a] + rng.random(n_match) * matched
+        rest = rng.random(n - n_match) * others
+        position[n_match:] = np.where(rest < self.cumulative[a], rest, rest + matched)
+        index = np.searchsorted(self.cumulative, position, side="right") - 1
+        return self.order[np.clip(index, 0, len(self.order) - 1)]
 
 
 class AnalyticManifold:
@@ -78,14 +96,15 @@ class AnalyticManifold:
         self.length = np.linalg.norm(self.ends - self.starts, axis=1)
         mid = np.column_stack([(self.starts + self.ends) / 2, self.theta])
         self.keys = observation_keys(world.sensing.true_contacts(mid))
+        self.sampler = KeyedSampler(self.keys, self.length, world.sensing.error_rate,
+                                    world.sensor_count)
 
     def __len__(self) -> int:
         return len(self.theta)
 
     def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator) -> np.ndarray:
         """Draw ``n`` states (n, 3) from the dual proposal for ``observation``."""
-        log_w = np.log(self.length) + _label_log_likelihood(self.world, self.keys, observation)
-        index = _draw(log_w, n, rng)
+        index = self.sampler.draw(observation, n, rng)
         t = rng.random(n)[:, None]
         xy = self.starts[index] + t * (self.ends[index] - self.starts[index])
         return np.column_stack([xy, self.theta[index]])
@@ -124,14 +143,15 @@ class RejectionSampledManifold:
             raise ValueError(f"rejection sampling found only {total} of {size} states")
         self.states = np.concatenate(kept)[:size]
         self.keys = observation_keys(world.sensing.true_contacts(self.states))
+        self.sampler = KeyedSampler(self.keys, np.ones(len(self.states)),
+                                    world.sensing.error_rate, world.sensor_count)
 
     def __len__(self) -> int:
         return len(self.states)
 
     def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator) -> np.ndarray:
         """Draw ``n`` states (n, 3) from the stored set in proportion to p(o | s)."""
-        index = _draw(_label_log_likelihood(self.world, self.keys, observation), n, rng)
-        return self.states[index]
+        return self.states[self.sampler.draw(observation, n, rng)]
 
 
 class TrajectoryRolloutManifold:
@@ -167,11 +187,13 @@ class TrajectoryRolloutManifold:
         self.states = visited_all[np.sort(keep)]
         self.keys = observation_keys(world.sensing.true_contacts(self.states))
         self.log_density = log_density(self.states, self.states, np.ones(len(self.states)))
+        correction = np.exp(self.log_density.min() - self.log_density)  # 1 / p~(s), scaled
+        self.sampler = KeyedSampler(self.keys, correction, world.sensing.error_rate,
+                                    world.sensor_count)
 
     def __len__(self) -> int:
         return len(self.states)
 
     def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator) -> np.ndarray:
         """Draw ``n`` states (n, 3) in proportion to p(o | s) / p~(s)."""
-        log_w = _label_log_likelihood(self.world, self.keys, observation) - self.log_density
-        return self.states[_draw(log_w, n, rng)]
+        return self.states[self.sampler.draw(observation, n, rng)]

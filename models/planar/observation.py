@@ -37,6 +37,7 @@ class ContactObservationModel:
         shape: the object's outline.
         tolerance_m: contact distance threshold (m).
         error_rate: probability of a wrong observation while in contact.
+        backend: distance queries compiled (``"numba"``) or array reference (``"numpy"``).
     """
 
     hand_parts: ConvexPolygons
@@ -46,6 +47,7 @@ class ContactObservationModel:
     shape: ConvexPolygons
     tolerance_m: float = DEFAULT_CONTACT_TOLERANCE_M
     error_rate: float = 0.1
+    backend: str = "numba"
 
     def __post_init__(self):
         if not 1 <= self.sensor_count <= 62:
@@ -56,7 +58,7 @@ class ContactObservationModel:
     def hand_distance(self, states: np.ndarray) -> np.ndarray:
         """(K,) signed distance (m) from the object at ``states`` (K, 3) to the hand."""
         return signed_distances(self.hand_parts, self.shape, states,
-                                exact_within=self.tolerance_m).min(axis=1)
+                                exact_within=self.tolerance_m, backend=self.backend).min(axis=1)
 
     def in_contact(self, states: np.ndarray) -> np.ndarray:
         """(K,) whether the object touches (or overlaps) the hand."""
@@ -64,7 +66,8 @@ class ContactObservationModel:
 
     def true_contacts(self, states: np.ndarray) -> np.ndarray:
         """(K, S) noise-free readings: which sensors the object touches."""
-        d = signed_distances(self.sensors, self.shape, states, exact_within=self.tolerance_m)
+        d = signed_distances(self.sensors, self.shape, states, exact_within=self.tolerance_m,
+                             backend=self.backend)
         starts = np.r_[0, np.flatnonzero(np.diff(self.sensor_of_segment)) + 1]
         return np.minimum.reduceat(d, starts, axis=1) <= self.tolerance_m
 

@@ -79,6 +79,19 @@ class ConvexPolygons:
     def __len__(self) -> int:
         return len(self.vertices)
 
+    def kernel_arrays(self) -> tuple[np.ndarray, ...]:
+        """(verts, normals, support, count, centers, radii) for :mod:`models.planar.kernels`."""
+        return (self.vertices, self.normals, self.support, self.valid.sum(1).astype(np.int64),
+                self.centers, self.radii)
+
+    def object_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """(verts, normals, support, radius about the origin) of the first polygon, as the
+        object argument of the kernels."""
+        n = int(self.valid[0].sum())
+        verts = self.vertices[0, :n]
+        return (verts, self.normals[0, :n], self.support[0, :n],
+                float(np.linalg.norm(verts, axis=1).max()))
+
 
 def rotation(theta: np.ndarray) -> np.ndarray:
     """(K, 2, 2) rotation matrices of angles ``theta`` (K,) rad."""
@@ -180,7 +193,7 @@ def candidate_pairs(parts: ConvexPolygons, shape: ConvexPolygons, poses: np.ndar
 
 
 def signed_distances(parts: ConvexPolygons, shape: ConvexPolygons, poses: np.ndarray,
-                     *, exact_within: float = 0.05) -> np.ndarray:
+                     *, exact_within: float = 0.05, backend: str = "numba") -> np.ndarray:
     """Signed distance (m) between each part and the object at each pose.
 
     Args:
@@ -189,11 +202,20 @@ def signed_distances(parts: ConvexPolygons, shape: ConvexPolygons, poses: np.nda
         poses: (K, 3) object poses (x m, y m, theta rad) in the reference frame.
         exact_within: pairs whose bounding circles are farther apart than this (m) get the
             bounding-circle lower bound instead of the exact distance.
+        backend: ``"numba"`` (compiled, :mod:`models.planar.kernels`) or ``"numpy"`` (this
+            module's array reference).
 
     Returns:
         (K, P) signed distances, exact wherever they are below ``exact_within``.
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    if backend == "numba":
+        from models.planar import kernels
+
+        return kernels.signed_distances(np.ascontiguousarray(poses), *parts.kernel_arrays(),
+                                        *shape.object_arrays(), float(exact_within))
+    if backend != "numpy":
+        raise ValueError(f"backend must be 'numba' or 'numpy', got {backend!r}")
     k, p, out = candidate_pairs(parts, shape, poses, exact_within)
     if len(k):
         rows, row = np.unique(k, return_inverse=True)

@@ -127,13 +127,18 @@ class PushingModel:
         hand_parts: the hand as convex polygons (hand frame, m).
         shape: the object outline as one convex polygon about its centre of friction.
         params: :class:`PushingParameters`.
+        backend: ``"numba"`` (compiled, :mod:`models.planar.kernels`, the default) or
+            ``"numpy"`` (this module's array reference; same results, slower).
     """
 
     def __init__(self, hand_parts: ConvexPolygons, shape: ConvexPolygons,
-                 params: PushingParameters = PushingParameters()):
+                 params: PushingParameters = PushingParameters(), backend: str = "numba"):
+        if backend not in ("numba", "numpy"):
+            raise ValueError(f"backend must be 'numba' or 'numpy', got {backend!r}")
         self.parts = hand_parts
         self.shape = shape
         self.params = params
+        self.backend = backend
 
     def substeps(self, action: np.ndarray) -> int:
         """Physics steps for a hand motion ``action`` = (dx m, dy m, dtheta rad) in the hand
@@ -162,8 +167,15 @@ class PushingModel:
         if u.shape != (len(states), 2 * n):
             raise ValueError(f"u must have shape {(len(states), 2 * n)}, got {u.shape}")
         delta = np.asarray(action, dtype=float) / n
-        undo = inverse(delta)
         p = self.params
+        if self.backend == "numba":
+            from models.planar import kernels
+
+            mu = truncated_normal(u[:, 0::2], p.mu_mean, p.mu_std)
+            c = truncated_normal(u[:, 1::2], p.c_mean_m, p.c_std_m)
+            return kernels.push(states, delta, n, mu, c, p.contact_iterations,
+                                *self.parts.kernel_arrays(), *self.shape.object_arrays())
+        undo = inverse(delta)
         for i in range(n):
             states = compose(undo, states)  # the hand moves; the object stays in the world
             mu = truncated_normal(u[:, 2 * i], p.mu_mean, p.mu_std)

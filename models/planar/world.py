@@ -43,15 +43,18 @@ class PlanarWorld:
              sensors: str | Path | PlanarSensorLayout = "medium", *,
              pushing: PushingParameters = PushingParameters(),
              tolerance_m: float = DEFAULT_CONTACT_TOLERANCE_M,
-             error_rate: float = 0.1) -> PlanarWorld:
-        """Build from an object (built-in name or YAML path) and a sensor layout."""
+             error_rate: float = 0.1, backend: str = "numba") -> PlanarWorld:
+        """Build from an object (built-in name or YAML path) and a sensor layout.
+
+        ``backend`` selects the compiled kernels (``"numba"``) or the numpy reference.
+        """
         hand = PlanarHand.load(sensors)
         spec = ObjectSpec.load(object_name_or_path)
         shape = ConvexPolygons.from_list([spec.footprint()])
-        model = PushingModel(hand.parts, shape, pushing)
+        model = PushingModel(hand.parts, shape, pushing, backend)
         sensing = ContactObservationModel(hand.parts, hand.sensor_polygons,
                                           hand.sensor_of_segment, hand.sensor_count, shape,
-                                          tolerance_m, error_rate)
+                                          tolerance_m, error_rate, backend)
         return PlanarWorld(hand, spec, shape, model, sensing)
 
     @property

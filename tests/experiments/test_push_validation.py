@@ -1,0 +1,21 @@
+"""The planar pushing model against Drake's hydroelastic simulation (slow: 20 pushes)."""
+
+import numpy as np
+import pytest
+
+from experiments.push_validation import run_push_validation, uniform_pressure_radius
+
+
+def test_uniform_pressure_radius_of_a_disk_is_two_thirds_of_its_radius():
+    a = 2 * np.pi * np.arange(256) / 256
+    disk = 0.09 * np.column_stack([np.cos(a), np.sin(a)])
+    assert uniform_pressure_radius(disk) == pytest.approx(0.06, rel=0.01)
+
+
+@pytest.mark.slow
+def test_rotation_direction_agrees_with_drake_in_every_case(tmp_path):
+    summary = run_push_validation(tmp_path, progress=False)
+    assert summary["case_count"] >= 20
+    assert summary["rotation_direction_agreement"] == summary["case_count"]
+    assert summary["position_difference_m_median"] < 0.02
+    assert (tmp_path / "push_validation.png").exists()
