@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import logsumexp
 
+from estimation.logmath import log_sum_exp
 from models.pose import wrap_angle
 
 ANGLE_INDEX = 2
@@ -43,7 +43,7 @@ class ParticleBelief:
     @property
     def weights(self) -> np.ndarray:
         """(N,) normalised weights (uniform if every log weight is -inf)."""
-        total = logsumexp(self.log_weights)
+        total = log_sum_exp(self.log_weights)
         if not np.isfinite(total):
             return np.full(len(self), 1.0 / len(self))
         return np.exp(self.log_weights - total)

@@ -10,15 +10,14 @@ and -179 deg are neighbours.
 
 scipy.stats.gaussian_kde is not used because it has no notion of a circular dimension
 and builds a full covariance from the data (which collapses when all particles share one
-orientation).
+orientation). The sum over kernels is compiled with Numba: Q x N kernel terms with a
+running log-sum-exp, no (Q, N) temporaries (the MPF evaluates 25 x 10,000 of them).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import logsumexp
-
-from models.pose import wrap_angle
+from numba import njit
 
 MIN_BANDWIDTH = np.array([1e-4, 1e-4, 1e-3])
 """Floor on each bandwidth (m, m, rad), so identical particles still give a density."""
@@ -50,16 +49,30 @@ def log_density(queries: np.ndarray, states: np.ndarray, weights: np.ndarray,
         (Q,) log densities (per m^2 rad).
     """
     w = weights / weights.sum()
-    h = silverman_bandwidth(states, w) if bandwidth is None else bandwidth
-    out = np.empty(len(queries))
+    h = silverman_bandwidth(states, w) if bandwidth is None else np.asarray(bandwidth, float)
     norm = -np.log(h).sum() - 1.5 * np.log(2 * np.pi)
     log_w = np.log(np.maximum(w, 1e-300))
-    chunk = max(1, 4_000_000 // max(1, len(states)))
-    for start in range(0, len(queries), chunk):
-        q = queries[start:start + chunk]
-        dx = (q[:, None, 0] - states[None, :, 0]) / h[0]
-        dy = (q[:, None, 1] - states[None, :, 1]) / h[1]
-        dt = wrap_angle(q[:, None, 2] - states[None, :, 2]) / h[2]
-        out[start:start + chunk] = logsumexp(log_w - 0.5 * (dx * dx + dy * dy + dt * dt),
-                                             axis=1) + norm
+    return _log_kernel_sums(np.ascontiguousarray(queries, dtype=float),
+                            np.ascontiguousarray(states, dtype=float), log_w, h) + norm
+
+
+@njit(cache=True)
+def _log_kernel_sums(queries, states, log_w, h):
+    two_pi = 2.0 * np.pi
+    out = np.empty(queries.shape[0])
+    terms = np.empty(states.shape[0])
+    for q in range(queries.shape[0]):
+        top = -np.inf
+        for i in range(states.shape[0]):
+            dx = (queries[q, 0] - states[i, 0]) / h[0]
+            dy = (queries[q, 1] - states[i, 1]) / h[1]
+            a = queries[q, 2] - states[i, 2]
+            a = a - two_pi * np.floor((a + np.pi) / two_pi)
+            dt = a / h[2]
+            terms[i] = log_w[i] - 0.5 * (dx * dx + dy * dy + dt * dt)
+            top = max(top, terms[i])
+        total = 0.0
+        for i in range(states.shape[0]):
+            total += np.exp(terms[i] - top)
+        out[q] = top + np.log(total)
     return out

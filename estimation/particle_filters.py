@@ -10,10 +10,10 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-from scipy.special import logsumexp
 
 from estimation.belief import ParticleBelief
 from estimation.kde import log_density
+from estimation.logmath import log_sum_exp
 from models.planar.world import PlanarWorld
 
 SAMPLING_FAILURE_LIKELIHOOD = 0.1
@@ -44,7 +44,7 @@ class UpdateDiagnostics:
 
 
 def _normalised(log_w: np.ndarray) -> np.ndarray | None:
-    total = logsumexp(log_w)
+    total = log_sum_exp(log_w)
     return None if not np.isfinite(total) else log_w - total
 
 

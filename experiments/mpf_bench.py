@@ -29,6 +29,8 @@ def _contact_belief(world: PlanarWorld, n: int, rng: np.random.Generator) -> np.
 
 
 def _median_ms(fn, repeats: int, label: str) -> float:
+    """Median wall time (ms) of ``repeats`` calls, after one untimed call (JIT compile)."""
+    fn()
     times = []
     for _ in tqdm(range(repeats), desc=label, leave=False):
         start = time.perf_counter()

@@ -4,9 +4,9 @@
 Why Numba: a step resolves contacts one after another (a Gauss-Seidel sweep), so the work
 per particle is a short, branchy loop. In numpy every sweep is a dozen array passes over
 all (particle, part) pairs, most of which are far apart; compiled, each particle stops as
-soon as it is resolved and skips far parts after one distance check. Kernels run on one
-thread: the studies already run one process per core, and for the MPF's 100 particles a
-thread pool's start-up costs more than the work. ``cmanip bench mpf``
+soon as it is resolved and skips far parts after one distance check. Small batches run
+on one thread (the MPF's 100 particles: a thread pool's start-up would cost more than the
+work; the studies run one process per core anyway), large ones on all cores. ``cmanip bench mpf``
 reports the difference (``--backend numpy`` runs the array reference). The formulas are
 the ones of :mod:`models.planar.polygon` and :mod:`models.planar.pushing`, which remain the
 readable reference; ``tests/models/planar/test_kernels.py`` checks both agree.
@@ -20,13 +20,13 @@ ConvexPolygons`): ``verts (P, V, 2)``, ``normals (P, V, 2)``, ``support (P, V)``
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 _POINT_TOL = 5e-4  # models.planar.polygon.CONTACT_POINT_TOLERANCE_M
 _OVERLAP_TOL = 1e-6  # models.planar.pushing.OVERLAP_TOLERANCE_M
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", fastmath=True)
 def _posed(x, y, c, s, ov, on, osup, B, nB, hB):
     """Object vertices, normals and supports at pose (x, y, cos, sin) into B, nB, hB."""
     for j in range(ov.shape[0]):
@@ -37,10 +37,11 @@ def _posed(x, y, c, s, ov, on, osup, B, nB, hB):
         hB[j] = osup[j] + nB[j, 0] * x + nB[j, 1] * y
 
 
-@njit(cache=True)
-def _sat(verts, normals, support, count, p, B, nB, hB):
+@njit(cache=True, fastmath=True)
+def _sat(verts, normals, support, count, p, B, nB, hB, cutoff):
     """Largest separating-axis separation of part p and the posed object, and its axis:
-    (sep, from_part, axis index)."""
+    (sep, from_part, axis index). Stops at the first axis whose separation reaches
+    ``cutoff``; the separation returned is then only a lower bound (>= cutoff)."""
     best, from_a, axis = -1e300, True, 0
     for i in range(count[p]):
         lo = 1e300
@@ -50,6 +51,8 @@ def _sat(verts, normals, support, count, p, B, nB, hB):
         sep = lo - support[p, i]
         if sep > best:
             best, from_a, axis = sep, True, i
+            if best >= cutoff:
+                return best, from_a, axis
     for i in range(B.shape[0]):
         lo = 1e300
         for j in range(count[p]):
@@ -58,12 +61,14 @@ def _sat(verts, normals, support, count, p, B, nB, hB):
         sep = lo - hB[i]
         if sep > best:
             best, from_a, axis = sep, False, i
+            if best >= cutoff:
+                return best, from_a, axis
     return best, from_a, axis
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def _point_edges(px, py, verts, n):
-    """Distance from a point to the closed polygon boundary ``verts[:n]``."""
+    """Squared distance from a point to the closed polygon boundary ``verts[:n]``."""
     best = 1e300
     for i in range(n):
         ax, ay = verts[i, 0], verts[i, 1]
@@ -73,17 +78,16 @@ def _point_edges(px, py, verts, n):
         t = min(max(((px - ax) * dx + (py - ay) * dy) / length2, 0.0), 1.0)
         gx, gy = px - ax - t * dx, py - ay - t * dy
         best = min(best, gx * gx + gy * gy)
-    return np.sqrt(best)
+    return best
 
 
-@njit(cache=True)
-def signed_distances(poses, verts, normals, support, count, centers, radii,
+def _signed_distances(poses, verts, normals, support, count, centers, radii,
                      ov, on, osup, orad, exact_within):
     """(K, P) signed distances; pairs farther than ``exact_within`` get the bounding-circle
     lower bound (as :func:`models.planar.polygon.signed_distances`)."""
     K, P, V = poses.shape[0], verts.shape[0], ov.shape[0]
     out = np.empty((K, P))
-    for k in range(K):
+    for k in prange(K):
         c, s = np.cos(poses[k, 2]), np.sin(poses[k, 2])
         B, nB, hB = np.empty((V, 2)), np.empty((V, 2)), np.empty(V)
         _posed(poses[k, 0], poses[k, 1], c, s, ov, on, osup, B, nB, hB)
@@ -93,8 +97,8 @@ def signed_distances(poses, verts, normals, support, count, centers, radii,
             if bound > exact_within:
                 out[k, p] = bound
                 continue
-            sep, _, _ = _sat(verts, normals, support, count, p, B, nB, hB)
-            if sep <= 0:
+            sep, _, _ = _sat(verts, normals, support, count, p, B, nB, hB, exact_within)
+            if sep <= 0 or sep >= exact_within:  # overlap depth, or a far pair's lower bound
                 out[k, p] = sep
                 continue
             d = 1e300
@@ -102,11 +106,11 @@ def signed_distances(poses, verts, normals, support, count, centers, radii,
                 d = min(d, _point_edges(B[j, 0], B[j, 1], verts[p], count[p]))
             for j in range(count[p]):
                 d = min(d, _point_edges(verts[p, j, 0], verts[p, j, 1], B, V))
-            out[k, p] = d
+            out[k, p] = np.sqrt(d)
     return out
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", fastmath=True)
 def _lynch(rx, ry, nx, ny, vx, vy, mu, c):
     """Object twist (object frame) for a point push; see models.planar.pushing."""
     c2 = c * c
@@ -139,8 +143,7 @@ def _lynch(rx, ry, nx, ny, vx, vy, mu, c):
     return V0 * k, V1 * k, V2 * k
 
 
-@njit(cache=True)
-def push(states, delta, steps, mu, c, iterations, verts, normals, support, count, centers,
+def _push(states, delta, steps, mu, c, iterations, verts, normals, support, count, centers,
          radii, ov, on, osup, orad):
     """Advance (K, 3) object poses (hand frame) while the hand moves ``delta`` per step.
 
@@ -158,7 +161,7 @@ def push(states, delta, steps, mu, c, iterations, verts, normals, support, count
     uy = -(-sd * delta[0] + cd * delta[1])
     ut = -delta[2]
     cu, su = np.cos(ut), np.sin(ut)
-    for k in range(K):
+    for k in prange(K):
         B, nB, hB = np.empty((V, 2)), np.empty((V, 2)), np.empty(V)
         x, y, t = out[k, 0], out[k, 1], out[k, 2]
         for step in range(steps):
@@ -171,7 +174,8 @@ def push(states, delta, steps, mu, c, iterations, verts, normals, support, count
                     gap = np.hypot(x - centers[p, 0], y - centers[p, 1])
                     if gap - radii[p] - orad > 0:
                         continue
-                    sep, from_a, axis = _sat(verts, normals, support, count, p, B, nB, hB)
+                    sep, from_a, axis = _sat(verts, normals, support, count, p, B, nB, hB,
+                                             min(best, -_OVERLAP_TOL))
                     if sep < -_OVERLAP_TOL and sep < best:
                         best, best_p, best_a, best_i = sep, p, from_a, axis
                 if best_p < 0:
@@ -224,3 +228,27 @@ def push(states, delta, steps, mu, c, iterations, verts, normals, support, count
         out[k, 0], out[k, 1] = x, y
         out[k, 2] = (t + np.pi) % (2 * np.pi) - np.pi
     return out
+
+
+PARALLEL_MIN_POSES = 4096
+"""Batches at least this large run on all cores (Numba threads); smaller ones on one, where
+starting the thread pool would cost more than the work (the MPF's 100 particles)."""
+
+# Numba's on-disk cache keys a function by its name, not by the ``parallel`` flag: only the
+# serial builds are cached; the threaded ones compile on first use in a process.
+_push_serial = njit(cache=True, fastmath=True)(_push)
+_push_parallel = njit(parallel=True, fastmath=True)(_push)
+_distances_serial = njit(cache=True)(_signed_distances)
+_distances_parallel = njit(parallel=True)(_signed_distances)
+
+
+def push(states, *args):
+    """See :func:`_push`; picks the threaded build for large batches."""
+    kernel = _push_parallel if len(states) >= PARALLEL_MIN_POSES else _push_serial
+    return kernel(states, *args)
+
+
+def signed_distances(poses, *args):
+    """See :func:`_signed_distances`; picks the threaded build for large batches."""
+    kernel = _distances_parallel if len(poses) >= PARALLEL_MIN_POSES else _distances_serial
+    return kernel(poses, *args)
