@@ -32,6 +32,39 @@ def plot_part(part: str, runs: list, out: Path) -> list[str]:
     raise ValueError(part)
 
 
+def plot_world(world, path: Path, thetas_deg=(0.0, 45.0, 90.0)) -> str:
+    """The planar hand (outline, sensors numbered from -y) and the contact manifold's
+    iso-contours (object-centre positions touching the hand) at a few orientations."""
+    from models.planar.cspace import c_obstacle
+
+    fig, ax = plt.subplots(figsize=(6, 6))
+    outline = world.hand.outline
+    ax.fill(*outline.exterior.xy, color="0.7", label="hand")
+    colours = plt.cm.tab20(np.linspace(0, 1, max(world.sensor_count, 2)))
+    for segment, sensor in zip(world.hand.sensor_segments, world.hand.sensor_of_segment,
+                               strict=True):
+        ax.plot(segment[:, 0], segment[:, 1], lw=4, color=colours[sensor])
+    for sensor in range(world.sensor_count):
+        mid = world.hand.sensor_segments[world.hand.sensor_of_segment == sensor].mean(axis=(0, 1))
+        ax.annotate(str(sensor), mid, textcoords="offset points", xytext=(6, 0), fontsize=8)
+    shape = world.shape.vertices[0][world.shape.valid[0]]
+    for theta in thetas_deg:
+        obstacle = c_obstacle(world.hand.parts, shape, np.deg2rad(theta))
+        for poly in getattr(obstacle, "geoms", [obstacle]):
+            ax.plot(*poly.exterior.xy, lw=0.8, label=f"X_c at {theta:g} deg")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x, forward (m)")
+    ax.set_ylabel("y, towards F3 (m)")
+    ax.set_title(f"planar hand, {world.sensor_count} sensors; {world.object_spec.name} "
+                 "contact manifold")
+    ax.legend(fontsize=8, loc="lower left")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path.name
+
+
 def _rmse_over_time(run, path: Path) -> str:
     condition, results = run
     dt = condition.settings.update_interval_m / HAND_SPEED_M_PER_S

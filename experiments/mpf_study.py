@@ -315,7 +315,7 @@ def conditions_for(part: str, base: TrialSettings) -> list[Condition]:
 def run_part(part: str, base: TrialSettings, trials: int, seed: int, workers: int, out: Path,
              progress: bool = True) -> dict:
     """Run a part, write ``out/summary.json`` and its figures, return the summary."""
-    from experiments.mpf_plots import plot_part
+    from experiments.mpf_plots import plot_part, plot_world
 
     if trials < 2:
         raise ValueError(f"--trials must be at least 2 (for confidence intervals), got {trials}")
@@ -332,7 +332,8 @@ def run_part(part: str, base: TrialSettings, trials: int, seed: int, workers: in
     else:
         summary["filters"] = {f"{label}@{c['name']}": v for c in summary["conditions"]
                               for label, v in c["filters"].items()}
-    summary["figures"] = plot_part(part, runs, out)
+    summary["figures"] = plot_part(part, runs, out) + [
+        plot_world(_world(base.object, base.sensors), out / "world.png")]
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary
 

@@ -46,3 +46,12 @@ def test_kde_integrates_to_one_and_wraps_orientation():
     across = log_density(np.array([[0, 0, -np.pi + 0.02]]), centres, w, h)
     same = log_density(np.array([[0, 0, np.pi - 0.02]]), centres, w, h)
     assert np.isclose(across, same, atol=1.0)  # 4 cm of arc apart across the wrap: close
+
+
+def test_effective_sample_size_and_weighted_mean():
+    states = np.array([[0.0, 0.0, 0.0], [0.1, 0.2, np.pi / 2]])
+    belief = ParticleBelief(states, np.log([0.75, 0.25]))
+    assert np.isclose(belief.effective_sample_size(), 1 / (0.75**2 + 0.25**2))
+    mean = belief.mean()
+    assert np.allclose(mean[:2], [0.025, 0.05])
+    assert np.isclose(mean[2], np.arctan2(0.25, 0.75))
