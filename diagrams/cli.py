@@ -125,7 +125,9 @@ def _experiment_mpf(args: argparse.Namespace) -> int:
         print(f"{name}:")
         for label, entry in part["filters"].items():
             fail = entry.get("sampling_failure_rate")
-            extra = f", sampling failures {fail:.0%}" if fail is not None else ""
+            extra = (f", sampling failures {fail:.0%} ("
+                     f"{entry['sampling_failure_rate_correct_readings']:.0%} on correct readings)"
+                     if fail is not None else "")
             print(f"  {label:28s} post-contact RMSE {entry['post_contact_rmse_cm']:.2f} cm, "
                   f"{entry['post_contact_rmse_deg']:.1f} deg{extra}")
     print(f"wrote {args.out}/summary.json and figures")

@@ -86,9 +86,11 @@ class FilterSpec:
 
 @dataclass
 class TrialResult:
-    """Per-update records of one trial: arrays (F, T) for the F filters."""
+    """Per-update records of one trial: arrays (F, T) for the F filters; ``reading_correct``
+    (T,) says whether the sensors reported the true (noise-free) reading."""
 
     contact_index: int | None
+    reading_correct: np.ndarray
     rmse_m: np.ndarray
     rmse_rad: np.ndarray
     contact_observed: np.ndarray
@@ -146,6 +148,7 @@ def run_trial(settings: TrialSettings, filters: tuple[FilterSpec, ...], study_se
         true_states.append(state[0])
         observations.append(world.sample_observation(state, truth_rng.random((1, 2)))[0])
     true_states = np.array(true_states)
+    reading_correct = (world.sensing.true_contacts(true_states) == np.array(observations)).all(1)
     touching = world.in_contact(true_states)
     contact_index = int(np.argmax(touching)) if touching.any() else None
 
@@ -162,7 +165,7 @@ def run_trial(settings: TrialSettings, filters: tuple[FilterSpec, ...], study_se
             rmse_m[f, t], rmse_rad[f, t] = belief.rmse(true_states[t])
             observed[f, t], failed[f, t] = diag.contact_observed, diag.sampling_failed
             dual[f, t] = diag.dual_used
-    return TrialResult(contact_index, rmse_m, rmse_rad, observed, failed, dual)
+    return TrialResult(contact_index, reading_correct, rmse_m, rmse_rad, observed, failed, dual)
 
 
 def _make_filter(world, settings, spec, mean, std, action, study_seed, rng):
@@ -252,6 +255,12 @@ def summarise(condition: Condition, results: list[TrialResult]) -> dict:
                                     for r in touched]) if touched else np.zeros(0, bool)
             entry["sampling_failure_rate"] = (float(fails.sum() / observed.sum())
                                               if observed.sum() else float("nan"))
+            correct = np.concatenate([r.reading_correct[r.contact_index:] for r in touched]
+                                     ) if touched else np.zeros(0, bool)
+            on_correct = observed & correct
+            entry["sampling_failure_rate_correct_readings"] = (
+                float((fails & on_correct).sum() / on_correct.sum()) if on_correct.sum()
+                else float("nan"))
             entry["mixing_rate"] = (condition.settings.mixing_rate if spec.mixing_rate is None
                                     else spec.mixing_rate)
         out[spec.label] = entry

@@ -24,7 +24,8 @@ def test_compare_part_writes_summary_and_figure(tmp_path):
     written = json.loads((tmp_path / "summary.json").read_text())
     assert written["filters"].keys() == {"cpf", "mpf-am"}
     entry = written["filters"]["mpf-am"]
-    for key in ("post_contact_rmse_cm", "post_contact_rmse_deg", "sampling_failure_rate"):
+    for key in ("post_contact_rmse_cm", "post_contact_rmse_deg", "sampling_failure_rate",
+                "sampling_failure_rate_correct_readings"):
         assert key in entry
     assert written["parameters"]["particles"] == 30
     assert (tmp_path / "compare_rmse.png").stat().st_size > 10_000
