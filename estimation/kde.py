@@ -17,7 +17,7 @@ running log-sum-exp, no (Q, N) temporaries (the MPF evaluates 25 x 10,000 of the
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 MIN_BANDWIDTH = np.array([1e-4, 1e-4, 1e-3])
 """Floor on each bandwidth (m, m, rad), so identical particles still give a density."""
@@ -52,16 +52,25 @@ def log_density(queries: np.ndarray, states: np.ndarray, weights: np.ndarray,
     h = silverman_bandwidth(states, w) if bandwidth is None else np.asarray(bandwidth, float)
     norm = -np.log(h).sum() - 1.5 * np.log(2 * np.pi)
     log_w = np.log(np.maximum(w, 1e-300))
-    return _log_kernel_sums(np.ascontiguousarray(queries, dtype=float),
-                            np.ascontiguousarray(states, dtype=float), log_w, h) + norm
+    queries = np.ascontiguousarray(queries, dtype=float)
+    states = np.ascontiguousarray(states, dtype=float)
+    kernel = _sums_parallel if len(states) >= PARALLEL_MIN_CENTRES else _sums_serial
+    return kernel(queries, states, log_w, h) + norm
 
 
-@njit(cache=True)
+PARALLEL_MIN_CENTRES = 4096
+"""Kernel sums over at least this many centres run on all cores."""
+
+NEGLIGIBLE_LOG_TERM = 40.0
+"""Terms more than this below a query's largest (a factor e^-40) are left out of its sum."""
+
+
 def _log_kernel_sums(queries, states, log_w, h):
+    """Per query, log sum_i exp(log_w_i - |(q - s_i) / h|^2 / 2), angle wrapped."""
     two_pi = 2.0 * np.pi
     out = np.empty(queries.shape[0])
-    terms = np.empty(states.shape[0])
-    for q in range(queries.shape[0]):
+    terms = np.empty((queries.shape[0], states.shape[0]))
+    for q in prange(queries.shape[0]):
         top = -np.inf
         for i in range(states.shape[0]):
             dx = (queries[q, 0] - states[i, 0]) / h[0]
@@ -69,10 +78,16 @@ def _log_kernel_sums(queries, states, log_w, h):
             a = queries[q, 2] - states[i, 2]
             a = a - two_pi * np.floor((a + np.pi) / two_pi)
             dt = a / h[2]
-            terms[i] = log_w[i] - 0.5 * (dx * dx + dy * dy + dt * dt)
-            top = max(top, terms[i])
+            terms[q, i] = log_w[i] - 0.5 * (dx * dx + dy * dy + dt * dt)
+            top = max(top, terms[q, i])
         total = 0.0
         for i in range(states.shape[0]):
-            total += np.exp(terms[i] - top)
+            if terms[q, i] > top - NEGLIGIBLE_LOG_TERM:
+                total += np.exp(terms[q, i] - top)
         out[q] = top + np.log(total)
     return out
+
+
+# Numba's cache keys by function name, not by ``parallel``: only the serial build is cached.
+_sums_serial = njit(cache=True)(_log_kernel_sums)
+_sums_parallel = njit(parallel=True)(_log_kernel_sums)

@@ -37,7 +37,7 @@ def _posed(x, y, c, s, ov, on, osup, B, nB, hB):
         hB[j] = osup[j] + nB[j, 0] * x + nB[j, 1] * y
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, inline="always", fastmath=True)
 def _sat(verts, normals, support, count, p, B, nB, hB, cutoff):
     """Largest separating-axis separation of part p and the posed object, and its axis:
     (sep, from_part, axis index). Stops at the first axis whose separation reaches
@@ -66,7 +66,7 @@ def _sat(verts, normals, support, count, p, B, nB, hB, cutoff):
     return best, from_a, axis
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, inline="always", fastmath=True)
 def _point_edges(px, py, verts, n):
     """Squared distance from a point to the closed polygon boundary ``verts[:n]``."""
     best = 1e300
@@ -87,9 +87,10 @@ def _signed_distances(poses, verts, normals, support, count, centers, radii,
     lower bound (as :func:`models.planar.polygon.signed_distances`)."""
     K, P, V = poses.shape[0], verts.shape[0], ov.shape[0]
     out = np.empty((K, P))
+    B_all, nB_all, hB_all = np.empty((K, V, 2)), np.empty((K, V, 2)), np.empty((K, V))
     for k in prange(K):
         c, s = np.cos(poses[k, 2]), np.sin(poses[k, 2])
-        B, nB, hB = np.empty((V, 2)), np.empty((V, 2)), np.empty(V)
+        B, nB, hB = B_all[k], nB_all[k], hB_all[k]
         _posed(poses[k, 0], poses[k, 1], c, s, ov, on, osup, B, nB, hB)
         for p in range(P):
             gap = np.hypot(poses[k, 0] - centers[p, 0], poses[k, 1] - centers[p, 1])
@@ -108,6 +109,54 @@ def _signed_distances(poses, verts, normals, support, count, centers, radii,
                 d = min(d, _point_edges(verts[p, j, 0], verts[p, j, 1], B, V))
             out[k, p] = np.sqrt(d)
     return out
+
+
+@njit(cache=True, inline="always", fastmath=True)
+def _within(verts, normals, support, count, centers, radii, p, x, y, orad, B, nB, hB, tol):
+    """Whether part p and the posed object (centre x, y) are within ``tol`` of each other."""
+    if np.hypot(x - centers[p, 0], y - centers[p, 1]) - radii[p] - orad > tol:
+        return False
+    sep, _, _ = _sat(verts, normals, support, count, p, B, nB, hB, tol)
+    if sep <= 0:
+        return True
+    if sep > tol:
+        return False
+    tol2 = tol * tol
+    for j in range(B.shape[0]):
+        if _point_edges(B[j, 0], B[j, 1], verts[p], count[p]) <= tol2:
+            return True
+    for j in range(count[p]):
+        if _point_edges(verts[p, j, 0], verts[p, j, 1], B, B.shape[0]) <= tol2:
+            return True
+    return False
+
+
+def _contact_readings(poses, hv, hn, hs, hc, hcen, hrad, sv, sn, ss, sc, scen, srad, owner,
+                      sensors, ov, on, osup, orad, tol):
+    """Per pose: does the object touch the hand (K,), and which sensors (K, S) it touches,
+    within ``tol`` (m). Sensor segments lie on the hand's outline, so a pose that does not
+    touch the hand touches no sensor and its sensors are not tested; a sensor's segments
+    are tested until the first that touches."""
+    K, V = poses.shape[0], ov.shape[0]
+    touching = np.zeros((K, sensors), dtype=np.bool_)
+    contact = np.zeros(K, dtype=np.bool_)
+    B_all, nB_all, hB_all = np.empty((K, V, 2)), np.empty((K, V, 2)), np.empty((K, V))
+    for k in prange(K):
+        x, y = poses[k, 0], poses[k, 1]
+        c, s = np.cos(poses[k, 2]), np.sin(poses[k, 2])
+        B, nB, hB = B_all[k], nB_all[k], hB_all[k]
+        _posed(x, y, c, s, ov, on, osup, B, nB, hB)
+        for p in range(hv.shape[0]):
+            if _within(hv, hn, hs, hc, hcen, hrad, p, x, y, orad, B, nB, hB, tol):
+                contact[k] = True
+                break
+        if not contact[k]:
+            continue
+        for g in range(sv.shape[0]):
+            if not touching[k, owner[g]] and _within(sv, sn, ss, sc, scen, srad, g, x, y,
+                                                      orad, B, nB, hB, tol):
+                touching[k, owner[g]] = True
+    return contact, touching
 
 
 @njit(cache=True, inline="always", fastmath=True)
@@ -161,8 +210,9 @@ def _push(states, delta, steps, mu, c, iterations, verts, normals, support, coun
     uy = -(-sd * delta[0] + cd * delta[1])
     ut = -delta[2]
     cu, su = np.cos(ut), np.sin(ut)
+    B_all, nB_all, hB_all = np.empty((K, V, 2)), np.empty((K, V, 2)), np.empty((K, V))
     for k in prange(K):
-        B, nB, hB = np.empty((V, 2)), np.empty((V, 2)), np.empty(V)
+        B, nB, hB = B_all[k], nB_all[k], hB_all[k]
         x, y, t = out[k, 0], out[k, 1], out[k, 2]
         for step in range(steps):
             x, y, t = ux + cu * x - su * y, uy + su * x + cu * y, t + ut
@@ -240,6 +290,8 @@ _push_serial = njit(cache=True, fastmath=True)(_push)
 _push_parallel = njit(parallel=True, fastmath=True)(_push)
 _distances_serial = njit(cache=True)(_signed_distances)
 _distances_parallel = njit(parallel=True)(_signed_distances)
+_readings_serial = njit(cache=True)(_contact_readings)
+_readings_parallel = njit(parallel=True)(_contact_readings)
 
 
 def push(states, *args):
@@ -251,4 +303,10 @@ def push(states, *args):
 def signed_distances(poses, *args):
     """See :func:`_signed_distances`; picks the threaded build for large batches."""
     kernel = _distances_parallel if len(poses) >= PARALLEL_MIN_POSES else _distances_serial
+    return kernel(poses, *args)
+
+
+def contact_readings(poses, *args):
+    """See :func:`_contact_readings`; picks the threaded build for large batches."""
+    kernel = _readings_parallel if len(poses) >= PARALLEL_MIN_POSES else _readings_serial
     return kernel(poses, *args)

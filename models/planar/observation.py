@@ -62,14 +62,30 @@ class ContactObservationModel:
 
     def in_contact(self, states: np.ndarray) -> np.ndarray:
         """(K,) whether the object touches (or overlaps) the hand."""
-        return self.hand_distance(states) <= self.tolerance_m
+        return self.readings(states)[0]
 
     def true_contacts(self, states: np.ndarray) -> np.ndarray:
         """(K, S) noise-free readings: which sensors the object touches."""
+        return self.readings(states)[1]
+
+    def readings(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Both tests at once: (K,) touches the hand, (K, S) touches each sensor."""
+        states = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
+        if self.backend == "numba":
+            from models.planar import kernels
+
+            return kernels.contact_readings(
+                states, *self.hand_parts.kernel_arrays, *self.sensors.kernel_arrays,
+                self._owner, self.sensor_count, *self.shape.object_arrays, self.tolerance_m)
         d = signed_distances(self.sensors, self.shape, states, exact_within=self.tolerance_m,
-                             backend=self.backend)
+                             backend="numpy")
         starts = np.r_[0, np.flatnonzero(np.diff(self.sensor_of_segment)) + 1]
-        return np.minimum.reduceat(d, starts, axis=1) <= self.tolerance_m
+        touching = np.minimum.reduceat(d, starts, axis=1) <= self.tolerance_m
+        return self.hand_distance(states) <= self.tolerance_m, touching
+
+    @property
+    def _owner(self) -> np.ndarray:
+        return np.ascontiguousarray(self.sensor_of_segment, dtype=np.int64)
 
     def log_likelihood(self, observation: np.ndarray, states: np.ndarray,
                        action: np.ndarray | None = None) -> np.ndarray:
@@ -79,8 +95,7 @@ class ContactObservationModel:
         state after the action only.
         """
         obs = self._check(observation)
-        touching = self.true_contacts(states)
-        contact = self.in_contact(states) | touching.any(axis=1)
+        contact, touching = self.readings(states)
         match = (touching == obs[None]).all(axis=1)
         wrong = self.error_rate / (2.0 ** self.sensor_count - 1.0)
         with np.errstate(divide="ignore"):
@@ -90,8 +105,7 @@ class ContactObservationModel:
 
     def sample_observation(self, states: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Draw readings for (K, 3) states from uniforms ``u`` (K, 2) -> (K, S) bool."""
-        touching = self.true_contacts(states)
-        contact = self.in_contact(states) | touching.any(axis=1)
+        contact, touching = self.readings(states)
         wrong = contact & (u[:, 0] < self.error_rate)
         # XOR with a uniformly drawn non-zero mask gives a uniformly drawn other vector.
         count = 2 ** self.sensor_count - 1

@@ -18,6 +18,7 @@ Shapely remains the tool for unions and Minkowski boundaries (:mod:`models.plana
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -79,17 +80,20 @@ class ConvexPolygons:
     def __len__(self) -> int:
         return len(self.vertices)
 
+    @cached_property
     def kernel_arrays(self) -> tuple[np.ndarray, ...]:
         """(verts, normals, support, count, centers, radii) for :mod:`models.planar.kernels`."""
         return (self.vertices, self.normals, self.support, self.valid.sum(1).astype(np.int64),
                 self.centers, self.radii)
 
+    @cached_property
     def object_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """(verts, normals, support, radius about the origin) of the first polygon, as the
         object argument of the kernels."""
         n = int(self.valid[0].sum())
-        verts = self.vertices[0, :n]
-        return (verts, self.normals[0, :n], self.support[0, :n],
+        verts = np.ascontiguousarray(self.vertices[0, :n])
+        return (verts, np.ascontiguousarray(self.normals[0, :n]),
+                np.ascontiguousarray(self.support[0, :n]),
                 float(np.linalg.norm(verts, axis=1).max()))
 
 
@@ -212,8 +216,8 @@ def signed_distances(parts: ConvexPolygons, shape: ConvexPolygons, poses: np.nda
     if backend == "numba":
         from models.planar import kernels
 
-        return kernels.signed_distances(np.ascontiguousarray(poses), *parts.kernel_arrays(),
-                                        *shape.object_arrays(), float(exact_within))
+        return kernels.signed_distances(np.ascontiguousarray(poses), *parts.kernel_arrays,
+                                        *shape.object_arrays, float(exact_within))
     if backend != "numpy":
         raise ValueError(f"backend must be 'numba' or 'numpy', got {backend!r}")
     k, p, out = candidate_pairs(parts, shape, poses, exact_within)

@@ -174,7 +174,7 @@ class PushingModel:
             mu = truncated_normal(u[:, 0::2], p.mu_mean, p.mu_std)
             c = truncated_normal(u[:, 1::2], p.c_mean_m, p.c_std_m)
             return kernels.push(states, delta, n, mu, c, p.contact_iterations,
-                                *self.parts.kernel_arrays(), *self.shape.object_arrays())
+                                *self.parts.kernel_arrays, *self.shape.object_arrays)
         undo = inverse(delta)
         for i in range(n):
             states = compose(undo, states)  # the hand moves; the object stays in the world
