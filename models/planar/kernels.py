@@ -1,15 +1,16 @@
-"""Compiled (Numba) kernels for the planar world's two hot paths: the pushing model's
-1 mm steps and the hand-object signed distances of the observation model.
+"""Compiled (Numba) kernels for the planar world's hot paths: the pushing model's 1 mm
+steps, hand-object signed distances, and the observation model's contact readings.
 
 Why Numba: a step resolves contacts one after another (a Gauss-Seidel sweep), so the work
 per particle is a short, branchy loop. In numpy every sweep is a dozen array passes over
 all (particle, part) pairs, most of which are far apart; compiled, each particle stops as
 soon as it is resolved and skips far parts after one distance check. Small batches run
 on one thread (the MPF's 100 particles: a thread pool's start-up would cost more than the
-work; the studies run one process per core anyway), large ones on all cores. ``cmanip bench mpf``
-reports the difference (``--backend numpy`` runs the array reference). The formulas are
-the ones of :mod:`models.planar.polygon` and :mod:`models.planar.pushing`, which remain the
-readable reference; ``tests/models/planar/test_kernels.py`` checks both agree.
+work; the studies run one process per core anyway), large ones on all cores. The
+formulas are the ones of :mod:`models.planar.polygon` and :mod:`models.planar.pushing`,
+which remain the readable reference (``PlanarWorld.load(..., backend="numpy")``);
+``tests/models/planar/test_kernels.py`` checks both agree and ``cmanip bench mpf`` times
+both in the same run.
 
 Kernels take polygon data as plain arrays (see :class:`~models.planar.polygon.
 ConvexPolygons`): ``verts (P, V, 2)``, ``normals (P, V, 2)``, ``support (P, V)``,
@@ -22,8 +23,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-_POINT_TOL = 5e-4  # models.planar.polygon.CONTACT_POINT_TOLERANCE_M
-_OVERLAP_TOL = 1e-6  # models.planar.pushing.OVERLAP_TOLERANCE_M
+from models.planar.polygon import CONTACT_POINT_TOLERANCE_M as _POINT_TOL
+from models.planar.pushing import OVERLAP_TOLERANCE_M as _OVERLAP_TOL
 
 
 @njit(cache=True, inline="always", fastmath=True)
