@@ -4,7 +4,8 @@ Subcommands:
     simulate   push an object straight ahead in a scene; writes replay.html, summary.json,
                tactile.png.
     bench      measurements (``bench timestep``: accuracy and speed per plant time step;
-               ``bench mpf``: filter update times and the pushing model's throughput).
+               ``bench mpf``: filter update times and the pushing model's throughput;
+               ``bench pomdp``: point-based solver bounds on Tag and RockSample).
     experiment studies that reproduce the seeds (``experiment mpf``: thesis sec. 4.3).
     scenes     list the built-in scenes, objects and tactile layouts.
 
@@ -51,6 +52,11 @@ def main(argv: list[str] | None = None) -> int:
     mpf_bench.add_argument("--seed", type=int, default=0)
     mpf_bench.add_argument("--json", type=Path, default=None)
 
+    pomdp_bench = bench_kinds.add_parser(
+        "pomdp", help="point-based solver bounds on Tag and RockSample(7,8)")
+    pomdp_bench.add_argument("--quick", action="store_true", help="stop at 30 s")
+    pomdp_bench.add_argument("--json", type=Path, default=None)
+
     experiment = commands.add_parser("experiment", help="studies that reproduce the seeds")
     studies = experiment.add_subparsers(dest="study", required=True)
     mpf = studies.add_parser("mpf", help="CPF vs MPF and the manifold representations")
@@ -90,6 +96,13 @@ def main(argv: list[str] | None = None) -> int:
             from experiments.mpf_bench import run_mpf_bench
 
             report = run_mpf_bench(repeats=args.repeats, seed=args.seed)
+            if args.json:
+                args.json.write_text(json.dumps(report, indent=2) + "\n")
+            return 0
+        if args.command == "bench" and args.bench == "pomdp":
+            from experiments.pomdp_bench import run_pomdp_bench
+
+            report = run_pomdp_bench(quick=args.quick)
             if args.json:
                 args.json.write_text(json.dumps(report, indent=2) + "\n")
             return 0
