@@ -146,49 +146,54 @@ class PointBasedSolver:
         """(K,) sawtooth upper bounds of (K, S) beliefs."""
         return beliefs @ self.corner + self.points.correction(beliefs)
 
-    def _children(self, belief: np.ndarray, a: int) -> tuple[np.ndarray, np.ndarray]:
-        """(p(o | b, a) (O,), posteriors (O, S))."""
-        predicted = self.m.T[a].T @ belief
-        joint = predicted[None, :] * self.m.Z[a].T
-        p = joint.sum(axis=1)
-        post = np.divide(joint, p[:, None], out=np.zeros_like(joint), where=p[:, None] > 0)
-        return p, post
-
-    def _q_upper(self, belief: np.ndarray) -> tuple[np.ndarray, list]:
-        """Upper-bound Q(b, a) for every action, with the children it used."""
-        S, A, _ = self.m.shape
-        q = np.empty(A)
-        kids = []
-        r = belief @ self.m.R
+    def _expand(self, belief: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Per action: (predicted belief (S,), p(o | b, a) (O,), posteriors (O, S)); the
+        products run over the predicted belief's support only."""
+        S, A, n_obs = self.m.shape
+        out = []
         for a in range(A):
-            p, post = self._children(belief, a)
+            predicted = self.m.T[a].T @ belief
+            nz = np.flatnonzero(predicted)
+            joint = predicted[nz][None, :] * self.m.Z[a, nz, :].T  # (O, |nz|)
+            p = joint.sum(axis=1)
+            post = np.zeros((n_obs, S))
+            possible = p > 0
+            post[np.ix_(possible, nz)] = joint[possible] / p[possible, None]
+            out.append((predicted, p, post))
+        return out
+
+    def _q_upper(self, belief: np.ndarray, kids) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Upper-bound Q(b, a) for every action and the children's upper bounds (A x (O,))."""
+        A = self.m.shape[1]
+        q = np.empty(A)
+        r = belief @ self.m.R
+        ups_all = []
+        for a, (_, p, post) in enumerate(kids):
             ups = np.zeros(len(p))
             possible = p > 0
             ups[possible] = self.upper_many(post[possible])
             q[a] = r[a] + self.gamma * p @ ups
-            kids.append((p, post, ups))
-        return q, kids
+            ups_all.append(ups)
+        return q, ups_all
 
     # -- backups
-    def _backup_lower(self, belief: np.ndarray) -> None:
+    def _backup_lower(self, belief: np.ndarray, kids) -> None:
         S, A, n_obs = self.m.shape
         support = np.flatnonzero(belief)
         best_value, best_alpha, best_action = -np.inf, None, -1
-        for a in range(A):
+        for a, (predicted, p, post) in enumerate(kids):
             g = np.zeros(S)
-            predicted = self.m.T[a].T @ belief
-            fallback = None
+            pnz = np.flatnonzero(predicted)
+            # the best alpha at every posterior; impossible observations still need a
+            # branch in the plan: they take the best alpha at the prediction
+            fallback = int(np.argmax(self.alphas[:, pnz] @ predicted[pnz]))
+            best = np.full(n_obs, fallback)
+            possible = np.flatnonzero(p > 0)
+            if len(possible):
+                best[possible] = np.argmax(post[np.ix_(possible, pnz)] @ self.alphas[:, pnz].T,
+                                           axis=1)
             for o in range(n_obs):
-                b_ao = predicted * self.m.Z[a, :, o]
-                nz = np.flatnonzero(b_ao)
-                if len(nz):
-                    k = int(np.argmax(self.alphas[:, nz] @ b_ao[nz]))
-                else:  # o impossible from b, but the plan still needs a branch for it
-                    if fallback is None:
-                        pnz = np.flatnonzero(predicted)
-                        fallback = int(np.argmax(self.alphas[:, pnz] @ predicted[pnz]))
-                    k = fallback
-                g += self.m.Z[a, :, o] * self.alphas[k]
+                g += self.m.Z[a, :, o] * self.alphas[best[o]]
             alpha = self.m.R[:, a] + self.gamma * (self.m.T[a] @ g)
             value = float(alpha[support] @ belief[support])
             if value > best_value:
@@ -201,8 +206,8 @@ class PointBasedSolver:
             if self._new_alphas >= self.prune_every:
                 self._prune()
 
-    def _backup_upper(self, belief: np.ndarray) -> None:
-        q, _ = self._q_upper(belief)
+    def _backup_upper(self, belief: np.ndarray, kids) -> None:
+        q, _ = self._q_upper(belief, kids)
         value = float(q.max())
         if value < self.upper(belief) - 1e-9:
             self.points.add(belief, value - float(self.corner @ belief))
@@ -224,9 +229,11 @@ class PointBasedSolver:
             return
         if len(self.visited) < 5000:
             self.visited.append(belief)
-        q, kids = self._q_upper(belief)
+        kids = self._expand(belief)
+        q, ups_all = self._q_upper(belief, kids)
         a = int(np.argmax(q))
-        p, post, ups = kids[a]
+        _, p, post = kids[a]
+        ups = ups_all[a]
         target = epsilon * self.gamma ** (-(depth + 1))
         scores = np.full(len(p), -np.inf)
         possible = p > 0
@@ -234,8 +241,8 @@ class PointBasedSolver:
         scores[possible] = p[possible] * (ups[possible] - lows - target)
         o = int(np.argmax(scores))
         self._explore(post[o], epsilon, depth + 1)
-        self._backup_lower(belief)
-        self._backup_upper(belief)
+        self._backup_lower(belief, kids)
+        self._backup_upper(belief, kids)
 
     def solve(self, seconds: float, *, report_every: float = 1.0,
               callback=None) -> AlphaVectorPolicy:
