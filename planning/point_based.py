@@ -279,7 +279,14 @@ class PointBasedSolver:
 
 class _UpperPoints:
     """Belief-value points of the upper bound, stored flat for the sawtooth:
-    ``correction(b) = min(0, min_i excess_i * min_{s in supp b_i} b(s) / b_i(s))``."""
+    ``correction(b) = min(0, min_i excess_i * min_{s in supp b_i} b(s) / b_i(s))``.
+
+    Only points whose support lies inside the belief's support can lower the bound (any
+    other has a ratio of 0). Points are kept sorted by their smallest state index, so the
+    candidates for a belief are a contiguous run found by binary search; structured
+    models (RockSample, Tag: the robot's position is known, beliefs live in one block of
+    states) then touch a small fraction of the points.
+    """
 
     def __init__(self):
         self._support: list[np.ndarray] = []
@@ -297,15 +304,38 @@ class _UpperPoints:
         self._excess.append(excess)
         self._flat = None
 
+    def _build(self):
+        lo = np.array([sup[0] for sup in self._support])
+        order = np.argsort(lo, kind="stable")
+        lengths = np.array([len(self._support[i]) for i in order])
+        starts = np.concatenate([[0], np.cumsum(lengths)])
+        self._flat = (np.concatenate([self._support[i] for i in order]),
+                      np.concatenate([self._probs[i] for i in order]), starts, lo[order],
+                      np.array([self._support[i][-1] for i in order]),
+                      np.array([self._excess[i] for i in order]))
+
     def correction(self, beliefs: np.ndarray) -> np.ndarray:
         """(K,) sawtooth corrections (<= 0) for (K, S) beliefs."""
+        out = np.zeros(len(beliefs))
         if not self._excess:
-            return np.zeros(len(beliefs))
+            return out
         if self._flat is None:
-            lengths = np.array([len(s) for s in self._support])
-            self._flat = (np.concatenate(self._support), np.concatenate(self._probs),
-                          np.concatenate([[0], np.cumsum(lengths)[:-1]]),
-                          np.array(self._excess))
-        support, probs, starts, excess = self._flat
-        ratios = np.minimum.reduceat(beliefs[:, support] / probs, starts, axis=1)
-        return np.minimum(0.0, (ratios * excess).min(axis=1))
+            self._build()
+        support, probs, starts, lo, hi, excess = self._flat
+        for k, belief in enumerate(beliefs):
+            nz = np.flatnonzero(belief)
+            if len(nz) == 0:
+                continue
+            first = int(np.searchsorted(lo, nz[0], side="left"))
+            last = int(np.searchsorted(lo, nz[-1], side="right"))
+            if first >= last:
+                continue
+            inside = np.flatnonzero(hi[first:last] <= nz[-1]) + first
+            if len(inside) == 0:
+                continue
+            a, b = starts[first], starts[last]
+            ratios = np.minimum.reduceat(belief[support[a:b]] / probs[a:b],
+                                         starts[first:last] - a)
+            best = (ratios[inside - first] * excess[inside]).min()
+            out[k] = min(0.0, best)
+        return out
