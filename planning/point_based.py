@@ -58,6 +58,33 @@ class AlphaVectorPolicy:
                                  tuple(str(n) for n in data["action_names"]))
 
 
+class LookaheadPolicy:
+    """Acts by one step of lookahead on the lower bound:
+    ``argmax_a R(b, a) + g sum_o p(o | b, a) V_lower(b_ao)``.
+
+    Executing the alpha-vector policy greedily can fall below the bound once pruning has
+    removed the sub-plans of an alpha-vector; a lookahead step never chooses an action
+    worth less than the bound at ``b`` (it contains the backup that produced it).
+    """
+
+    def __init__(self, pomdp: TabularPOMDP, policy: AlphaVectorPolicy):
+        self.m = pomdp
+        self.policy = policy
+
+    def __call__(self, belief: np.ndarray) -> int:
+        return self.act(belief)
+
+    def act(self, belief: np.ndarray) -> int:
+        values = belief @ self.m.R
+        for a in range(self.m.shape[1]):
+            predicted = self.m.T[a].T @ belief
+            nz = np.flatnonzero(predicted)
+            joint = predicted[nz][None, :] * self.m.Z[a, nz, :].T  # (O, |nz|) = p(o) b_ao
+            best = (joint @ self.policy.alphas[:, nz].T).max(axis=1)
+            values[a] += self.m.discount * best.sum()
+        return int(np.argmax(values))
+
+
 @dataclass
 class SolverReport:
     """Bounds at the initial belief over time: rows of (elapsed s, lower, upper)."""

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from planning.benchmarks import tag, tiger
-from planning.point_based import AlphaVectorPolicy, PointBasedSolver
+from planning.point_based import AlphaVectorPolicy, LookaheadPolicy, PointBasedSolver
 from planning.pomdp import simulate_value
 
 TIGER_OPTIMUM = 19.37  # infinite-horizon value of Tiger at the uniform belief, discount 0.95
@@ -33,3 +33,12 @@ def test_tag_lower_bound_is_a_value_the_policy_achieves(tmp_path):
     loaded = AlphaVectorPolicy.load(path)
     b = model.initial
     assert loaded.act(b) == policy.act(b) and loaded.value(b) == pytest.approx(policy.value(b))
+
+
+def test_lookahead_policy_on_tiger_listens_when_unsure():
+    model = tiger()
+    policy = LookaheadPolicy(model, PointBasedSolver(model).solve(3.0))
+    assert policy.act(model.initial) == 0  # listen
+    assert policy.act(np.array([0.999, 0.001])) == 2  # open the other door
+    value, _ = simulate_value(model, policy, 400, 100, rng=np.random.default_rng(0))
+    assert value > TIGER_OPTIMUM - 3.0
