@@ -121,12 +121,38 @@ class PointBasedSolver:
         self.prune_every = prune_every
         self.TZ = [[sp.csr_matrix(pomdp.T[a].multiply(pomdp.Z[a, :, o][None, :]))
                     for o in range(n_obs)] for a in range(A)]
-        self.alphas, self.alpha_actions = self._blind_policies()
+        blind, blind_actions = self._blind_policies()
+        self._alpha_buffer = np.empty((max(64, 4 * len(blind)), S))
+        self._action_buffer = np.empty(len(self._alpha_buffer), dtype=np.int64)
+        self._alpha_count = 0
+        for alpha, action in zip(blind, blind_actions, strict=True):
+            self._add_alpha(alpha, action)
         self.corner = self._fast_informed_bound().max(axis=1)
         self.points = _UpperPoints()
-        self.visited: list[np.ndarray] = []
+        self.visited: list[tuple[np.ndarray, np.ndarray]] = []  # (support, probabilities)
         self._new_alphas = 0
         self.report = SolverReport()
+
+    @property
+    def alphas(self) -> np.ndarray:
+        """(K, S) the lower bound's alpha-vectors (a view)."""
+        return self._alpha_buffer[:self._alpha_count]
+
+    @property
+    def alpha_actions(self) -> np.ndarray:
+        """(K,) the action of each alpha-vector (a view)."""
+        return self._action_buffer[:self._alpha_count]
+
+    def _add_alpha(self, alpha: np.ndarray, action: int) -> None:
+        """Append to the buffers, doubling them when full (no copy of all K per backup)."""
+        if self._alpha_count == len(self._alpha_buffer):
+            self._alpha_buffer = np.concatenate([self._alpha_buffer,
+                                                 np.empty_like(self._alpha_buffer)])
+            self._action_buffer = np.concatenate([self._action_buffer,
+                                                  np.empty_like(self._action_buffer)])
+        self._alpha_buffer[self._alpha_count] = alpha
+        self._action_buffer[self._alpha_count] = action
+        self._alpha_count += 1
 
     # -- bounds
     def _blind_policies(self) -> tuple[np.ndarray, np.ndarray]:
@@ -169,9 +195,10 @@ class PointBasedSolver:
         """Sawtooth interpolation over the corner values and the stored points."""
         return float(self.upper_many(belief[None, :])[0])
 
-    def upper_many(self, beliefs: np.ndarray) -> np.ndarray:
-        """(K,) sawtooth upper bounds of (K, S) beliefs."""
-        return beliefs @ self.corner + self.points.correction(beliefs)
+    def upper_many(self, beliefs: np.ndarray, span: tuple[int, int] | None = None) -> np.ndarray:
+        """(K,) sawtooth upper bounds of (K, S) beliefs; ``span`` = (first, last) state index
+        that any of them can be non-zero at, when the caller knows it."""
+        return beliefs @ self.corner + self.points.correction(beliefs, span)
 
     def _expand(self, belief: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """Per action: (predicted belief (S,), p(o | b, a) (O,), posteriors (O, S)); the
@@ -195,10 +222,12 @@ class PointBasedSolver:
         q = np.empty(A)
         r = belief @ self.m.R
         ups_all = []
-        for a, (_, p, post) in enumerate(kids):
+        for a, (predicted, p, post) in enumerate(kids):
             ups = np.zeros(len(p))
             possible = p > 0
-            ups[possible] = self.upper_many(post[possible])
+            nz = np.flatnonzero(predicted)
+            if len(nz):
+                ups[possible] = self.upper_many(post[possible], (int(nz[0]), int(nz[-1])))
             q[a] = r[a] + self.gamma * p @ ups
             ups_all.append(ups)
         return q, ups_all
@@ -226,8 +255,7 @@ class PointBasedSolver:
             if value > best_value:
                 best_value, best_alpha, best_action = value, alpha, a
         if best_value > self.lower(belief) + 1e-9:
-            self.alphas = np.vstack([self.alphas, best_alpha])
-            self.alpha_actions = np.append(self.alpha_actions, best_action)
+            self._add_alpha(best_alpha, best_action)
             self.report.backups += 1
             self._new_alphas += 1
             if self._new_alphas >= self.prune_every:
@@ -244,10 +272,18 @@ class PointBasedSolver:
         self._new_alphas = 0
         if not self.visited:
             return
-        B = np.array(self.visited)
-        keep = set(np.argmax(B @ self.alphas.T, axis=1).tolist()) | set(range(self.m.shape[1]))
+        S = self.m.shape[0]
+        rows = np.concatenate([np.full(len(sup), i) for i, (sup, _) in enumerate(self.visited)])
+        B = sp.csr_matrix((np.concatenate([p for _, p in self.visited]),
+                           (rows, np.concatenate([sup for sup, _ in self.visited]))),
+                          shape=(len(self.visited), S))
+        best = np.asarray((B @ self.alphas.T).argmax(axis=1)).ravel()
+        keep = set(best.tolist()) | set(range(self.m.shape[1]))
         index = np.array(sorted(keep))
-        self.alphas, self.alpha_actions = self.alphas[index], self.alpha_actions[index]
+        kept_alphas, kept_actions = self.alphas[index].copy(), self.alpha_actions[index].copy()
+        self._alpha_count = len(index)
+        self._alpha_buffer[:len(index)] = kept_alphas
+        self._action_buffer[:len(index)] = kept_actions
 
     # -- search
     def _explore(self, belief: np.ndarray, epsilon: float, depth: int) -> None:
@@ -255,7 +291,8 @@ class PointBasedSolver:
         if gap <= epsilon * self.gamma ** (-depth) or depth >= self.max_depth:
             return
         if len(self.visited) < 5000:
-            self.visited.append(belief)
+            support = np.flatnonzero(belief)
+            self.visited.append((support, belief[support]))
         kids = self._expand(belief)
         q, ups_all = self._q_upper(belief, kids)
         a = int(np.argmax(q))
@@ -264,7 +301,8 @@ class PointBasedSolver:
         target = epsilon * self.gamma ** (-(depth + 1))
         scores = np.full(len(p), -np.inf)
         possible = p > 0
-        lows = (post[possible] @ self.alphas.T).max(axis=1)
+        cols = np.flatnonzero(post[possible].any(axis=0))
+        lows = (post[np.ix_(possible, cols)] @ self.alphas[:, cols].T).max(axis=1)
         scores[possible] = p[possible] * (ups[possible] - lows - target)
         o = int(np.argmax(scores))
         self._explore(post[o], epsilon, depth + 1)
@@ -341,8 +379,11 @@ class _UpperPoints:
                       np.array([self._support[i][-1] for i in order]),
                       np.array([self._excess[i] for i in order]))
 
-    def correction(self, beliefs: np.ndarray) -> np.ndarray:
-        """(K,) sawtooth corrections (<= 0) for (K, S) beliefs."""
+    def correction(self, beliefs: np.ndarray,
+                   span: tuple[int, int] | None = None) -> np.ndarray:
+        """(K,) sawtooth corrections (<= 0) for (K, S) beliefs. ``span`` bounds their
+        supports (a superset is fine: points reaching outside a belief's own support get a
+        ratio of 0 and change nothing)."""
         out = np.zeros(len(beliefs))
         if not self._excess:
             return out
@@ -350,14 +391,18 @@ class _UpperPoints:
             self._build()
         support, probs, starts, lo, hi, excess = self._flat
         for k, belief in enumerate(beliefs):
-            nz = np.flatnonzero(belief)
-            if len(nz) == 0:
-                continue
-            first = int(np.searchsorted(lo, nz[0], side="left"))
-            last = int(np.searchsorted(lo, nz[-1], side="right"))
+            if span is None:
+                nz = np.flatnonzero(belief)
+                if len(nz) == 0:
+                    continue
+                begin, end = nz[0], nz[-1]
+            else:
+                begin, end = span
+            first = int(np.searchsorted(lo, begin, side="left"))
+            last = int(np.searchsorted(lo, end, side="right"))
             if first >= last:
                 continue
-            inside = np.flatnonzero(hi[first:last] <= nz[-1]) + first
+            inside = np.flatnonzero(hi[first:last] <= end) + first
             if len(inside) == 0:
                 continue
             a, b = starts[first], starts[last]
