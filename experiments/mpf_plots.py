@@ -15,6 +15,14 @@ from experiments.mpf_study import aligned, summarise  # noqa: E402
 HAND_SPEED_M_PER_S = 0.01
 
 
+def _save(fig, path: Path) -> str:
+    """Lay out, write (PNG, 120 dpi) and close a figure; return its file name."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path.name
+
+
 def plot_part(part: str, runs: list, out: Path) -> list[str]:
     """Write the part's PNGs into ``out``; return their file names."""
     if part in ("compare", "representations"):
@@ -59,10 +67,7 @@ def plot_world(world, path: Path, thetas_deg=(0.0, 45.0, 90.0)) -> str:
                  "contact manifold")
     ax.legend(fontsize=8, loc="lower left")
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path.name
+    return _save(fig, path)
 
 
 def _rmse_over_time(run, path: Path) -> str:
@@ -85,10 +90,7 @@ def _rmse_over_time(run, path: Path) -> str:
     touched = sum(r.contact_index is not None for r in results)
     axes[0].set_title(f"{condition.name}: {touched} of {len(results)} trials made contact "
                       "(95% CI)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path.name
+    return _save(fig, path)
 
 
 def _failure_rates(run, path: Path) -> str:
@@ -113,21 +115,19 @@ def _failure_rates(run, path: Path) -> str:
     ax.set_ylabel("dual sampling failures (% of contact updates)")
     ax.set_title("sampling failures (95% CI over trials)")
     ax.grid(axis="y", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path.name
+    return _save(fig, path)
 
 
 def _post_contact_by(runs, key: str, xlabel: str, path: Path, scale: float = 1.0) -> str:
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     xs = [c.extra[key] for c, _ in runs]
     positions = np.arange(len(xs))
+    summaries = [summarise(c, r)["filters"] for c, r in runs]
     for spec in runs[0][0].filters:
         for ax, field, unit in ((axes[0], "post_contact_rmse_cm", "cm"),
                                 (axes[1], "post_contact_rmse_deg", "deg")):
-            means = [summarise(c, r)["filters"][spec.label][field] for c, r in runs]
-            cis = [summarise(c, r)["filters"][spec.label][field + "_ci95"] for c, r in runs]
+            means = [s[spec.label][field] for s in summaries]
+            cis = [s[spec.label][field + "_ci95"] for s in summaries]
             ax.errorbar(positions, means, yerr=cis, marker="o", capsize=4, label=spec.label)
             ax.set_ylabel(f"post-contact RMSE ({unit})")
     for ax in axes:
@@ -137,10 +137,7 @@ def _post_contact_by(runs, key: str, xlabel: str, path: Path, scale: float = 1.0
         ax.grid(alpha=0.3)
     axes[0].legend()
     fig.suptitle("post-contact RMSE (95% CI)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path.name
+    return _save(fig, path)
 
 
 def _mixing(run, path: Path) -> str:
@@ -161,7 +158,4 @@ def _mixing(run, path: Path) -> str:
         ax.grid(alpha=0.3)
     axes[0].legend()
     fig.suptitle("MPF-AM against mixing rate (95% CI)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path.name
+    return _save(fig, path)

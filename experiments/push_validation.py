@@ -31,6 +31,7 @@ from models.planar.polygon import signed_distances  # noqa: E402
 from models.planar.pushing import PushingParameters  # noqa: E402
 from models.planar.se2 import compose, inverse  # noqa: E402
 from models.planar.world import PlanarWorld  # noqa: E402
+from models.pose import wrap_angle  # noqa: E402
 from models.scene import PlanarPose, SceneSpec  # noqa: E402
 from models.tactile import TactileLayout, TactileNoise  # noqa: E402
 
@@ -63,10 +64,8 @@ def run_push_validation(out: Path, *, push_distance_m: float = 0.15, gap_m: floa
 
     scene = SceneSpec.load("empty")
     mu = combined_friction(HAND_MATERIAL.mu_dynamic, scene.object.material.mu_dynamic)
-    world = PlanarWorld.load(scene.object.source or scene.object.name, "medium")
-    outline = world.shape.vertices[0][world.shape.valid[0]]
-    c = uniform_pressure_radius(outline)
-    exact = PlanarWorld.load(scene.object.source or scene.object.name, "medium",
+    c = uniform_pressure_radius(scene.object.footprint())
+    world = PlanarWorld.load(scene.object.source or scene.object.name, "medium",
                              pushing=PushingParameters(mu_mean=mu, mu_std=0.0, c_mean_m=c,
                                                        c_std_m=0.0))
     hand = scene.hand_start.as_array()
@@ -82,10 +81,10 @@ def run_push_validation(out: Path, *, push_distance_m: float = 0.15, gap_m: floa
         palm_final = compose(hand, np.array([push_distance_m, 0.0, 0.0]))
         drake_rel = compose(inverse(palm_final), np.array(outcome.summary["object_final_pose"]))
         action = np.array([push_distance_m, 0.0, 0.0])
-        u = np.full((1, exact.uniforms_per_step(action)), 0.5)
-        planar_rel = exact.step(start[None], action, u)[0]
-        turn_drake = _wrap(drake_rel[2] - start[2])
-        turn_planar = _wrap(planar_rel[2] - start[2])
+        u = np.full((1, world.uniforms_per_step(action)), 0.5)
+        planar_rel = world.step(start[None], action, u)[0]
+        turn_drake = float(wrap_angle(drake_rel[2] - start[2]))
+        turn_planar = float(wrap_angle(planar_rel[2] - start[2]))
         agree = (np.sign(turn_drake) == np.sign(turn_planar)) or (
             max(abs(turn_drake), abs(turn_planar)) < np.deg2rad(still_deg))
         cases.append({
@@ -123,10 +122,6 @@ def _start_with_gap(world: PlanarWorld, lateral: float, theta: float,
     states = np.column_stack([xs, np.full_like(xs, lateral), np.full_like(xs, theta)])
     d = signed_distances(world.hand.parts, world.shape, states, exact_within=1.0).min(axis=1)
     return states[int(np.argmax(d <= gap_m))]
-
-
-def _wrap(a: float) -> float:
-    return float((a + np.pi) % (2 * np.pi) - np.pi)
 
 
 def _plot(rot: np.ndarray, diffs: np.ndarray, path: Path) -> None:

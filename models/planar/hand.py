@@ -30,10 +30,9 @@ from pathlib import Path
 
 import numpy as np
 import shapely
-from pydrake.geometry import Box, Cylinder, Role
+from pydrake.geometry import Box, Cylinder, Role, SceneGraph
 from pydrake.math import RigidTransform
-from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlantConfig
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
 from scipy.spatial import ConvexHull
 
 from models.config import Fields, resolve_asset
@@ -125,29 +124,30 @@ class PlanarHand:
 def _projected_parts(hand_file: str) -> tuple[tuple[np.ndarray, ...], tuple[str, ...]]:
     """Project every collision geometry of the preshaped Drake hand onto the push plane."""
     spec = BarrettHandSpec.load(hand_file or None)
-    builder = DiagramBuilder()
-    plant, scene_graph = AddMultibodyPlant(
-        MultibodyPlantConfig(time_step=1e-3, discrete_contact_approximation="lagged"), builder
-    )
+    # A bare plant and SceneGraph (no Diagram): body poses come from the plant's own
+    # context and geometry poses in their bodies from the inspector.
+    plant = MultibodyPlant(1e-3)
+    plant.set_discrete_contact_approximation(DiscreteContactApproximation.kLagged)
+    scene_graph = SceneGraph()
+    plant.RegisterAsSourceForSceneGraph(scene_graph)
     hand = add_barrett_hand(plant, spec, TactileLayout())
     plant.WeldFrames(plant.world_frame(), hand.base.body_frame(), RigidTransform())
     plant.Finalize()
-    diagram = builder.Build()
-    context = diagram.CreateDefaultContext()
-    plant_context = plant.GetMyContextFromRoot(context)
+    plant_context = plant.CreateDefaultContext()
     spread, proximal = hand.preshape[0], hand.preshape[1]
     for joint_name, value in [("bh_f1_spread", spread), ("bh_f2_spread", spread)] + [
         (f"bh_{f}_{link}", proximal * (spec.distal_coupling if link == "distal" else 1.0))
         for f in ("f1", "f2", "f3") for link in ("proximal", "distal")
     ]:
         plant.GetJointByName(joint_name, hand.instance).set_angle(plant_context, value)
-    query = plant.get_geometry_query_input_port().Eval(plant_context)
-    inspector = query.inspector()
+    inspector = scene_graph.model_inspector()
     X_PW = spec.X_BaseP.inverse()
     polygons, names = [], []
     for gid in inspector.GetAllGeometryIds(Role.kProximity):
         corners = _shape_points(inspector.GetShape(gid))
-        p_P = (X_PW @ query.GetPoseInWorld(gid)).multiply(corners.T).T
+        body = plant.GetBodyFromFrameId(inspector.GetFrameId(gid))
+        X_WG = plant.EvalBodyPoseInWorld(plant_context, body) @ inspector.GetPoseInFrame(gid)
+        p_P = (X_PW @ X_WG).multiply(corners.T).T
         planar = p_P[:, [2, 1]]  # palm z -> planar x (forward), palm y -> planar y
         polygon = planar[ConvexHull(planar).vertices]  # 2-D hulls come counter-clockwise
         name = inspector.GetName(gid).split("::")[-1]
