@@ -309,33 +309,57 @@ class PointBasedSolver:
         self._backup_lower(belief, kids)
         self._backup_upper(belief, kids)
 
-    def solve(self, seconds: float, *, report_every: float = 1.0,
-              callback=None) -> AlphaVectorPolicy:
+    def solve(self, seconds: float, *, report_every: float = 1.0, callback=None,
+              initial_beliefs: np.ndarray | None = None,
+              weights: np.ndarray | None = None) -> AlphaVectorPolicy:
         """Improve the bounds for ``seconds`` of wall time; return the lower-bound policy.
 
-        ``callback(elapsed, lower, upper)`` is called about every ``report_every`` s.
+        Args:
+            seconds: wall-time budget (s).
+            report_every: how often (s) the bounds are recorded in :attr:`report`.
+            callback: ``callback(elapsed, lower, upper)``, called at every record.
+            initial_beliefs: (K, S) several initial beliefs to plan for at once (default:
+                the model's one). This is the thesis' augmented POMDP (sec. 6.2.1): a
+                fictitious first step that reveals which of the K beliefs holds, with
+                probabilities ``weights``. Each trial starts at the belief with the largest
+                weighted gap, which is where HSVI's observation choice at that first step
+                would send it; the reported bounds are the weighted sums, without the
+                fictitious step's discount.
+            weights: (K,) probabilities of the initial beliefs (default: equal).
         """
         start = time.perf_counter()
-        b0 = self.m.initial
+        roots = (self.m.initial[None, :] if initial_beliefs is None
+                 else np.atleast_2d(np.asarray(initial_beliefs, dtype=float)))
+        if roots.shape[1] != self.m.shape[0]:
+            raise ValueError(f"initial_beliefs must have {self.m.shape[0]} columns")
+        w = (np.full(len(roots), 1.0 / len(roots)) if weights is None
+             else np.asarray(weights, dtype=float) / np.sum(weights))
         last = -np.inf
 
-        def record():
+        def bounds():
+            lows = np.array([self.lower(b) for b in roots])
+            ups = np.array([self.upper(b) for b in roots])
+            return lows, ups
+
+        def record(lows, ups):
             elapsed = time.perf_counter() - start
-            lo, up = self.lower(b0), self.upper(b0)
+            lo, up = float(w @ lows), float(w @ ups)
             self.report.history.append((elapsed, lo, up))
             if callback is not None:
                 callback(elapsed, lo, up)
 
-        record()
+        record(*bounds())
         while time.perf_counter() - start < seconds:
-            gap = self.upper(b0) - self.lower(b0)
-            if gap < 1e-6:
+            lows, ups = bounds()
+            gaps = ups - lows
+            if float(w @ gaps) < 1e-6:
                 break
-            self._explore(b0, self.gap_fraction * gap, 0)
+            k = int(np.argmax(w * gaps))
+            self._explore(roots[k], self.gap_fraction * gaps[k], 0)
             if time.perf_counter() - last >= report_every:
-                record()
+                record(*bounds())
                 last = time.perf_counter()
-        record()
+        record(*bounds())
         self.report.alpha_count = len(self.alphas)
         self.report.upper_points = len(self.points)
         return AlphaVectorPolicy(self.alphas.copy(), self.alpha_actions.copy(),
