@@ -6,7 +6,9 @@ Subcommands:
     bench      measurements (``bench timestep``: accuracy and speed per plant time step;
                ``bench mpf``: filter update times and the pushing model's throughput;
                ``bench pomdp``: point-based solver bounds on Tag and RockSample).
-    experiment studies that reproduce the seeds (``experiment mpf``: thesis sec. 4.3).
+    experiment studies that reproduce the seeds (``experiment mpf``: thesis sec. 4.3;
+               ``experiment pushval``: the planar pushing model against Drake;
+               ``experiment handplan``: planning by touch, thesis sec. 6.4).
     scenes     list the built-in scenes, objects and tactile layouts.
 
 Studies (``experiments/``) are imported lazily, only by the subcommands that run them.
@@ -79,6 +81,26 @@ def main(argv: list[str] | None = None) -> int:
     pushval.add_argument("--out", type=Path, required=True)
     pushval.add_argument("--no-progress", action="store_true")
 
+    handplan = studies.add_parser("handplan",
+                                  help="QMDP vs point-based post-contact policies, "
+                                       "pre-contact A*, sensor coverage (thesis ch. 6)")
+    handplan.add_argument("--part", default="post-contact",
+                          choices=["post-contact", "full", "coverage", "all"])
+    handplan.add_argument("--trials", type=int, default=200,
+                          help="continuous-model trials per policy (discrete: twice as many)")
+    handplan.add_argument("--seed", type=int, default=0)
+    handplan.add_argument("--solve-seconds", type=float, default=300.0,
+                          help="point-based solver budget (s)")
+    handplan.add_argument("--plan-seconds", type=float, default=20.0,
+                          help="pre-contact search budget per belief (s)")
+    handplan.add_argument("--horizon", type=int, default=50, help="post-contact steps")
+    handplan.add_argument("--problem", type=Path, default=None,
+                          help="YAML of HandProblemSpec fields (trust region, cells, goal, "
+                               "discount, samples per state)")
+    handplan.add_argument("--quick", action="store_true",
+                          help="a small problem (coarse trust region, few samples) to try it out")
+    handplan.add_argument("--out", type=Path, required=True)
+
     commands.add_parser("scenes", help="list built-in scenes, objects and tactile layouts")
 
     args = parser.parse_args(argv)
@@ -108,6 +130,8 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         if args.command == "experiment" and args.study == "pushval":
             return _experiment_pushval(args)
+        if args.command == "experiment" and args.study == "handplan":
+            return _experiment_handplan(args)
         if args.command == "experiment":
             return _experiment_mpf(args)
         for kind in ("scenes", "objects", "tactile", "planar_sensors"):
@@ -143,6 +167,46 @@ def _experiment_mpf(args: argparse.Namespace) -> int:
                      if fail is not None else "")
             print(f"  {label:28s} post-contact RMSE {entry['post_contact_rmse_cm']:.2f} cm, "
                   f"{entry['post_contact_rmse_deg']:.1f} deg{extra}")
+    print(f"wrote {args.out}/summary.json and figures")
+    return 0
+
+
+def _experiment_handplan(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from experiments.handplan_study import HandplanSettings, quick_settings, run_study
+    from planning.hand_discretization import HandProblemSpec
+    from planning.precontact import PreContactSettings
+
+    if args.trials < 2 or args.horizon < 1:
+        raise ValueError("--trials must be >= 2 and --horizon >= 1")
+    if args.solve_seconds <= 0 or args.plan_seconds <= 0:
+        raise ValueError("--solve-seconds and --plan-seconds must be > 0")
+    spec = HandProblemSpec.load(args.problem) if args.problem else HandProblemSpec()
+    settings = HandplanSettings(trials=args.trials, seed=args.seed,
+                                solve_seconds=args.solve_seconds, horizon=args.horizon,
+                                precontact=PreContactSettings(time_limit_s=args.plan_seconds),
+                                spec=spec)
+    if args.quick:
+        settings = quick_settings(settings)
+        settings = replace(settings, precontact=replace(settings.precontact,
+                                                        time_limit_s=args.plan_seconds))
+    summary = run_study(args.part, settings, args.out)
+    for key, label in (("post_contact_discrete", "post-contact, discrete model"),
+                       ("post_contact", "post-contact, continuous model"),
+                       ("full", "full policy, continuous model")):
+        for name, r in summary.get(key, {}).items():
+            line = (f"  {label:32s} {name:6s} value {r['discounted_value']:7.2f} "
+                    f"+- {r['discounted_value_ci95']:.2f}")
+            if "success_rate" in r:
+                lo, hi = r["success_rate_ci95"]
+                line += f", success {r['success_rate']:.0%} [{lo:.0%}, {hi:.0%}]"
+            print(line)
+    for sensors, c in summary.get("coverage", {}).items():
+        obs = c["observations"]
+        print(f"  coverage {sensors}: {obs['feasible']} of {obs['possible']} contact readings "
+              f"feasible; full-policy success " + ", ".join(
+                  f"{n} {r['success_rate']:.0%}" for n, r in c["full"].items()))
     print(f"wrote {args.out}/summary.json and figures")
     return 0
 

@@ -4,23 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from experiments.mpf_study import aligned, summarise  # noqa: E402
+from experiments.mpf_study import aligned, summarise
+from experiments.plotting import save_figure as _save
 
 HAND_SPEED_M_PER_S = 0.01
-
-
-def _save(fig, path: Path) -> str:
-    """Lay out, write (PNG, 120 dpi) and close a figure; return its file name."""
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path.name
 
 
 def plot_part(part: str, runs: list, out: Path) -> list[str]:

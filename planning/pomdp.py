@@ -80,19 +80,22 @@ def belief_update(pomdp: TabularPOMDP, belief: np.ndarray, action: int,
     return joint / total, total
 
 
-def simulate_value(pomdp: TabularPOMDP, policy, episodes: int, horizon: int, *,
-                   rng: np.random.Generator) -> tuple[float, float]:
-    """Mean discounted return of ``policy`` (``act(belief) -> action``) over ``episodes``
-    episodes of ``horizon`` steps from the initial belief, with a discrete Bayes filter.
+def simulate_returns(pomdp: TabularPOMDP, policy, beliefs: np.ndarray, episodes: int,
+                     horizon: int, *, rng: np.random.Generator) -> np.ndarray:
+    """Discounted returns of ``policy`` (``act(belief) -> action``) on the model itself.
+
+    Episode ``e`` starts from ``beliefs[e % K]`` ((K, S) initial beliefs): the state is drawn
+    from it and the policy tracks it with the discrete Bayes filter for ``horizon`` steps.
 
     Returns:
-        (mean, 95 % half-width).
+        (episodes,) returns.
     """
+    beliefs = np.atleast_2d(beliefs)
     S, _, n_obs = pomdp.shape
     returns = np.empty(episodes)
     for e in range(episodes):
-        state = int(rng.choice(S, p=pomdp.initial))
-        belief = pomdp.initial.copy()
+        belief = beliefs[e % len(beliefs)].copy()
+        state = int(rng.choice(S, p=belief / belief.sum()))
         total, scale = 0.0, 1.0
         for _ in range(horizon):
             action = int(policy(belief))
@@ -103,5 +106,17 @@ def simulate_value(pomdp: TabularPOMDP, policy, episodes: int, horizon: int, *,
             belief, _ = belief_update(pomdp, belief, action, observation)
             scale *= pomdp.discount
         returns[e] = total
+    return returns
+
+
+def simulate_value(pomdp: TabularPOMDP, policy, episodes: int, horizon: int, *,
+                   rng: np.random.Generator) -> tuple[float, float]:
+    """Mean discounted return of ``policy`` over ``episodes`` episodes of ``horizon`` steps
+    from the model's initial belief (see :func:`simulate_returns`).
+
+    Returns:
+        (mean, 95 % half-width).
+    """
+    returns = simulate_returns(pomdp, policy, pomdp.initial, episodes, horizon, rng=rng)
     half = 1.96 * returns.std(ddof=1) / np.sqrt(episodes) if episodes > 1 else 0.0
     return float(returns.mean()), float(half)

@@ -41,6 +41,8 @@ from models.planar.polygon import ConvexPolygons
 from models.tactile import TactileLayout
 
 CYLINDER_PROJECTION_SEGMENTS = 48
+LAYOUT_KINDS = ("front", "links")
+LINKS = ("palm", "f12_proximal", "f12_distal", "f3_proximal", "f3_distal")
 FRONT_SAMPLE_SPACING_M = 0.5e-3
 
 
@@ -48,9 +50,20 @@ FRONT_SAMPLE_SPACING_M = 0.5e-3
 class PlanarSensorLayout:
     """Binary contact sensors on the planar hand's front contour.
 
+    Two kinds (``kind``):
+
+    - ``front``: the front contour split into ``front_sensors`` equal-length sensors (the
+      MPF experiments' "sensors distributed uniformly across the front surface", and with
+      two, one per fingertip, the planning experiments' fingertip sensors);
+    - ``links``: every link is one sensor over all of its outline an object can reach
+      (thesis sec. 6.4.4, "each of the hand's seven links served as a binary contact
+      sensor"). F1 and F2 project onto the same polygons, so the planar hand has five:
+      palm (with the knuckles and the F/T sensor), F1/F2 proximal, F1/F2 distal, F3
+      proximal, F3 distal.
+
     Attributes:
         name: layout name (file stem).
-        front_sensors: number of equal-length sensors along the front contour.
+        front_sensors: number of equal-length sensors along the front contour (``front``).
         min_facing: an outline edge belongs to the front if its outward normal's x
             component exceeds this (0 = any forward-facing edge).
         probe_radius_m: radius (m) of the smallest object considered: outline pockets such
@@ -62,15 +75,25 @@ class PlanarSensorLayout:
     front_sensors: int
     min_facing: float = 0.0
     probe_radius_m: float = 0.005
+    kind: str = "front"
+
+    def __post_init__(self):
+        if self.kind not in LAYOUT_KINDS:
+            raise ValueError(f"kind must be one of {LAYOUT_KINDS}, got {self.kind!r}")
 
     @staticmethod
     def load(name_or_path: str | Path = "medium") -> PlanarSensorLayout:
         """Load ``low``, ``medium``, ``high`` (built in) or a layout file by path."""
         path = resolve_asset("planar_sensors", name_or_path)
         fields = Fields.from_file(path)
+        kind = fields.string("kind", "front", choices=LAYOUT_KINDS)
+        count = (fields.number("front_sensors", len(LINKS), min=1, max=60, integer=True)
+                 if kind == "links" else
+                 fields.number("front_sensors", min=1, max=60, integer=True))
         layout = PlanarSensorLayout(
             name=path.stem,
-            front_sensors=int(fields.number("front_sensors", min=1, max=60, integer=True)),
+            front_sensors=int(count),
+            kind=kind,
             min_facing=fields.number("min_facing", 0.0, min=0.0, max=0.99),
             probe_radius_m=fields.number("probe_radius_m", 0.005, min=0.0, max=0.05),
         )
@@ -116,8 +139,13 @@ class PlanarHand:
             layout = PlanarSensorLayout.load(layout)
         parts, names = _merge_convex(*_projected_parts(str(hand_file) if hand_file else ""))
         polygons = ConvexPolygons.from_list(list(parts))
-        segments, owner = front_sensors(polygons, layout)
-        return PlanarHand(polygons, names, segments, owner, layout.front_sensors, layout)
+        if layout.kind == "links":
+            segments, owner = link_sensors(polygons, names, layout)
+            count = len(LINKS)
+        else:
+            segments, owner = front_sensors(polygons, layout)
+            count = layout.front_sensors
+        return PlanarHand(polygons, names, segments, owner, count, layout)
 
 
 @lru_cache(maxsize=4)
@@ -216,6 +244,64 @@ def _union(parts: ConvexPolygons) -> shapely.Geometry:
     return shapely.union_all(grown)
 
 
+def link_of_part(name: str) -> int:
+    """Index into ``LINKS`` of a merged part (names of the Drake geometries it holds)."""
+    first = name.split("+")[0]
+    finger = "f3" if first.startswith("f3") else "f12"
+    if "distal" in first or first.endswith("_tip"):
+        return LINKS.index(f"{finger}_distal")
+    if "proximal" in first:
+        return LINKS.index(f"{finger}_proximal")
+    return LINKS.index("palm")
+
+
+def _outline_edges(outline: shapely.Geometry, probe_radius_m: float):
+    """The outline's edges (at most FRONT_SAMPLE_SPACING_M long), counter-clockwise from the
+    rearmost point: (start, end, outward normal, length, reachable by the probe disk)."""
+    ring = shapely.segmentize(shapely.LinearRing(outline.exterior.coords),
+                              FRONT_SAMPLE_SPACING_M)
+    if not ring.is_ccw:
+        ring = ring.reverse()
+    pts = np.asarray(ring.coords)[:-1]
+    pts = np.roll(pts, -int(np.argmin(pts[:, 0])), axis=0)
+    pts = np.vstack([pts, pts[:1]])
+    start, end = pts[:-1], pts[1:]
+    edge = end - start
+    length = np.linalg.norm(edge, axis=1)
+    keep = length > 1e-9
+    start, end, edge, length = start[keep], end[keep], edge[keep], length[keep]
+    normal = np.column_stack([edge[:, 1], -edge[:, 0]]) / length[:, None]
+    mid = (start + end) / 2 + 1e-6 * normal
+    # A disk of the probe radius reaches an edge from outside when the edge lies within the
+    # radius of the dilated outline's outer boundary (pockets behind narrow gaps become
+    # holes of the dilation and are excluded).
+    r = max(probe_radius_m, 1e-6)
+    outer = shapely.Polygon(outline.buffer(r, quad_segs=32).exterior).exterior
+    reachable = shapely.distance(shapely.points(mid), outer) <= r * 1.01 + 1e-6
+    return start, end, normal, mid, reachable
+
+
+def link_sensors(parts: ConvexPolygons, names: tuple[str, ...],
+                 layout: PlanarSensorLayout) -> tuple[np.ndarray, np.ndarray]:
+    """One sensor per link (``LINKS``): the reachable outline edges nearest to its parts.
+
+    Returns:
+        ``segments`` (S, 2, 2) and the sensor index (S,) of each, grouped by sensor.
+    """
+    outline = _union(parts)
+    if outline.geom_type != "Polygon":
+        raise ValueError("the planar hand is not one connected polygon")
+    start, end, _, mid, reachable = _outline_edges(outline, layout.probe_radius_m)
+    polygons = [shapely.Polygon(_valid(parts, i)) for i in range(len(parts))]
+    nearest = np.argmin(shapely.distance(shapely.points(mid)[:, None],
+                                         np.array(polygons)[None, :]), axis=1)
+    link = np.array([link_of_part(n) for n in names])[nearest]
+    keep = reachable
+    order = np.argsort(link[keep], kind="stable")
+    segments = np.stack([start[keep], end[keep]], axis=1)[order]
+    return _merge_collinear(segments, link[keep][order])
+
+
 def front_sensors(parts: ConvexPolygons,
                   layout: PlanarSensorLayout) -> tuple[np.ndarray, np.ndarray]:
     """Split the hand's front contour into ``layout.front_sensors`` equal-length sensors.
@@ -232,32 +318,11 @@ def front_sensors(parts: ConvexPolygons,
     outline = _union(parts)
     if outline.geom_type != "Polygon":
         raise ValueError("the planar hand is not one connected polygon")
-    ring = shapely.segmentize(shapely.LinearRing(outline.exterior.coords),
-                              FRONT_SAMPLE_SPACING_M)
-    if not ring.is_ccw:
-        ring = ring.reverse()
-    pts = np.asarray(ring.coords)[:-1]
-    # Start the ring at its rearmost point: a counter-clockwise walk then crosses the front
-    # once, from -y to +y, so the front edges come out in that order.
-    pts = np.roll(pts, -int(np.argmin(pts[:, 0])), axis=0)
-    pts = np.vstack([pts, pts[:1]])
-    start, end = pts[:-1], pts[1:]
-    edge = end - start
-    length = np.linalg.norm(edge, axis=1)
-    keep = length > 1e-9
-    start, end, edge, length = start[keep], end[keep], edge[keep], length[keep]
-    normal = np.column_stack([edge[:, 1], -edge[:, 0]]) / length[:, None]
-    mid = (start + end) / 2 + 1e-6 * normal
+    start, end, normal, mid, reachable = _outline_edges(outline, layout.probe_radius_m)
     far = mid.copy()
     far[:, 0] = mid[:, 0] + 1.0
     rays = shapely.linestrings(np.stack([mid, far], axis=1))
     visible = ~shapely.intersects(rays, outline)
-    # A disk of the probe radius reaches an edge from outside when the edge lies within the
-    # radius of the dilated outline's outer boundary (pockets behind narrow gaps become
-    # holes of the dilation and are excluded).
-    r = max(layout.probe_radius_m, 1e-6)
-    outer = shapely.Polygon(outline.buffer(r, quad_segs=32).exterior).exterior
-    reachable = shapely.distance(shapely.points(mid), outer) <= r * 1.01 + 1e-6
     front = (normal[:, 0] > layout.min_facing) & visible & reachable
     if not np.any(front):
         raise ValueError("the hand has no front contour")

@@ -1,0 +1,323 @@
+"""``cmanip experiment handplan``: planning by touch, hand-relative (thesis sec. 6.4).
+
+Parts:
+
+- ``post-contact`` (Fig. 6.5a, b; H1, H2): QMDP and the point-based (POMDP) post-contact
+  policy, from the 15 Gaussian belief points 20 cm ahead. Value on the discrete model
+  (``2 x trials`` episodes, as the thesis' 1000 vs 500) and success on the continuous
+  planar model (``trials`` episodes).
+- ``full`` (Fig. 6.5c; H3, H4): the same beliefs 50 cm ahead, outside the trust region:
+  the weighted A* pre-contact trajectory, then the post-contact policy.
+- ``coverage`` (Fig. 6.6; H5, H6): fingertip sensors against every link a sensor, for
+  both policies, post-contact and full; with the count of geometrically feasible
+  observations on the analytic contact manifold (thesis: 10 of 128 with seven links).
+- ``all``: every part (the fingertip model is built and solved once).
+
+Every trial ``j`` starts from belief point ``j mod 15``; random streams are keyed by
+(seed, part, policy, trial), so results do not depend on the order of evaluation.
+Writes ``summary.json`` (per policy ``success_rate`` with its 95 % Wilson interval,
+``discounted_value`` with its 95 % half-width, success over time), PNG plots, the
+policies (``.npz``) and the fingertip model in Cassandra's ``.pomdp`` format.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from estimation.manifolds import AnalyticManifold
+from models.planar.world import PlanarWorld
+from planning.cassandra import write_pomdp
+from planning.hand_beliefs import (
+    POST_CONTACT_DISTANCE_M,
+    PRE_CONTACT_DISTANCE_M,
+    GaussianBelief,
+    belief_points,
+)
+from planning.hand_discretization import HandProblemSpec
+from planning.hand_policy import HandPolicy, qmdp_vectors
+from planning.hand_pomdp import HandPOMDP, build_hand_pomdp
+from planning.point_based import AlphaVectorPolicy, PointBasedSolver
+from planning.pomdp import simulate_returns
+from planning.precontact import PreContactPlan, PreContactPlanner, PreContactSettings
+from planning.qmdp import solve_mdp
+
+PARTS = ("post-contact", "full", "coverage", "all")
+POLICIES = ("QMDP", "POMDP")
+
+
+@dataclass(frozen=True)
+class HandplanSettings:
+    """Attributes:
+        trials: continuous-model episodes per policy (the discrete model gets twice as many).
+        seed: master seed.
+        solve_seconds: point-based solver budget (s; the thesis ran SARSOP 5 min).
+        horizon: post-contact episode length (steps; Fig. 6.5a's depth 50). The full policy
+            gets 15 more steps for its 30 cm longer way.
+        belief_count: number of Gaussian belief points (thesis: 15).
+        belief_particles: particles that discretise a Gaussian belief.
+        precontact_particles: particles of the pre-contact search and its filter.
+        precontact: the A* settings.
+        object_name: the pushed object (thesis: the 3.5 cm x 5 cm box).
+        spec: the discretisation and reward parameters.
+    """
+
+    trials: int = 200
+    seed: int = 0
+    solve_seconds: float = 300.0
+    horizon: int = 50
+    belief_count: int = 15
+    belief_particles: int = 3000
+    precontact_particles: int = 300
+    precontact: PreContactSettings = field(default_factory=PreContactSettings)
+    object_name: str = "small_box"
+    spec: HandProblemSpec = field(default_factory=HandProblemSpec)
+
+    def __post_init__(self):
+        if self.trials < 1 or self.horizon < 1 or self.belief_count < 1:
+            raise ValueError("trials, horizon and belief_count must be >= 1")
+        if self.solve_seconds <= 0:
+            raise ValueError("solve_seconds must be > 0")
+
+
+@dataclass
+class SolvedProblem:
+    """A model with both post-contact policies and what they cost."""
+
+    model: HandPOMDP
+    policies: dict[str, AlphaVectorPolicy]
+    timings: dict[str, float]
+    bounds: list[tuple[float, float, float]]
+
+
+def _rng(settings: HandplanSettings, *key: int) -> np.random.Generator:
+    return np.random.default_rng([settings.seed, *key])
+
+
+def _stream(name: str) -> int:
+    return sum((i + 1) * ord(c) for i, c in enumerate(name))
+
+
+def solve_problem(settings: HandplanSettings, sensors: str,
+                  beliefs: list[GaussianBelief]) -> SolvedProblem:
+    """Build the model for ``sensors`` and solve QMDP and the point-based policy."""
+    world = PlanarWorld.load(settings.object_name, sensors=sensors)
+    model = build_hand_pomdp(world, settings.spec, rng=_rng(settings, _stream(sensors)))
+    start = time.perf_counter()
+    Q = solve_mdp(model.pomdp)
+    qmdp_s = time.perf_counter() - start
+    initial = discretise(model, beliefs, settings)
+    solver = PointBasedSolver(model.pomdp)
+    bar = tqdm(total=int(settings.solve_seconds), desc=f"point-based solver ({sensors})",
+               unit="s")
+
+    def show(elapsed, lower, upper):
+        if int(elapsed) > bar.n:
+            bar.update(min(int(elapsed), bar.total) - bar.n)
+            bar.set_postfix(lower=f"{lower:.3f}", upper=f"{upper:.3f}")
+
+    start = time.perf_counter()
+    pomdp_policy = solver.solve(settings.solve_seconds, initial_beliefs=initial, callback=show)
+    bar.close()
+    solve_s = time.perf_counter() - start
+    policies = {"QMDP": qmdp_vectors(Q, model.pomdp.actions), "POMDP": pomdp_policy}
+    timings = {"build_s": model.build_seconds, "qmdp_solve_s": qmdp_s,
+               "pomdp_solve_s": solve_s}
+    for name, policy in policies.items():
+        b = initial[0]
+        runs = []
+        for _ in range(20):
+            t0 = time.perf_counter()
+            policy.act(b)
+            runs.append(time.perf_counter() - t0)
+        timings[f"{name.lower()}_act_ms"] = 1e3 * float(np.median(runs))
+    return SolvedProblem(model, policies, timings, list(solver.report.history))
+
+
+def discretise(model: HandPOMDP, beliefs: list[GaussianBelief],
+               settings: HandplanSettings) -> np.ndarray:
+    """(K, S) discrete versions of the Gaussian beliefs (histograms of their samples)."""
+    return np.array([model.belief(b.sample(model.world, settings.belief_particles,
+                                           rng=_rng(settings, 7, i)))
+                     for i, b in enumerate(beliefs)])
+
+
+def evaluate_discrete(problem: SolvedProblem, initial: np.ndarray,
+                      settings: HandplanSettings) -> dict[str, dict]:
+    """H1: discounted value of each policy on the discrete model."""
+    out = {}
+    for name, policy in problem.policies.items():
+        returns = simulate_returns(problem.model.pomdp, policy, initial, 2 * settings.trials,
+                                   settings.horizon, rng=_rng(settings, 11, _stream(name)))
+        out[name] = {"discounted_value": float(returns.mean()),
+                     "discounted_value_ci95": _half_width(returns),
+                     "episodes": len(returns)}
+    return out
+
+
+def evaluate_continuous(problem: SolvedProblem, beliefs: list[GaussianBelief],
+                        settings: HandplanSettings, *, precontact: bool,
+                        label: str) -> dict[str, dict]:
+    """H2 (and H3, H4 with ``precontact``): each policy on the continuous planar model.
+
+    All trials advance together: the true objects are pushed in one batch per action, and
+    each trial's policy updates its own belief from its own reading.
+    """
+    model, world = problem.model, problem.model.world
+    horizon = settings.horizon + (15 if precontact else 0)
+    initial = None if precontact else discretise(model, beliefs, settings)
+    out = {}
+    for name, vectors in problem.policies.items():
+        planner = PreContactPlanner(model, vectors, settings.precontact) if precontact else None
+        plans: dict[int, PreContactPlan] = {}
+        trials = settings.trials
+        rngs = [_rng(settings, 13, _stream(label + name), j) for j in range(trials)]
+        states = np.vstack([beliefs[j % len(beliefs)].sample(world, 1, rng=rngs[j])
+                            for j in range(trials)])
+        policies = []
+        for j in tqdm(range(trials), desc=f"{label} {name}: start", unit="trial",
+                      leave=False):
+            k = j % len(beliefs)
+            policy = HandPolicy(model, vectors, planner)
+            if precontact:
+                particles = beliefs[k].sample(world, settings.precontact_particles,
+                                              rng=rngs[j])
+                if k not in plans:
+                    plans[k] = planner.plan(particles, rng=_rng(settings, 17, k))
+                policy.reset(particles, plan=plans[k], rng=rngs[j])
+            else:
+                policy.reset(initial[k], rng=rngs[j])
+            policies.append(policy)
+        success = np.zeros((horizon + 1, trials), dtype=bool)
+        success[0] = model.in_goal(states)
+        returns = np.zeros(trials)
+        actions_vec = settings.spec.action_vectors()
+        for t in tqdm(range(horizon), desc=f"{label} {name}", unit="step"):
+            actions = np.array([p.act() for p in policies])
+            returns -= settings.spec.discount ** t * (~model.in_goal(states))
+            for a in np.unique(actions):
+                sel = np.flatnonzero(actions == a)
+                u = np.vstack([rngs[j].random(world.uniforms_per_step(actions_vec[a]))
+                               for j in sel])
+                states[sel] = world.step(states[sel], actions_vec[a], u)
+            u_obs = np.vstack([rngs[j].random(2) for j in range(trials)])
+            readings = world.sample_observation(states, u_obs)
+            for j, policy in enumerate(policies):
+                policy.observe(int(actions[j]), readings[j], rng=rngs[j])
+            success[t + 1] = model.in_goal(states)
+        rate = success.mean(axis=1)
+        lo, hi = _wilson(success[-1].sum(), trials)
+        out[name] = {
+            "success_rate": float(rate[-1]), "success_rate_ci95": [lo, hi],
+            "success_over_time": rate.tolist(),
+            "discounted_value": float(returns.mean()),
+            "discounted_value_ci95": _half_width(returns),
+            "trials": trials,
+        }
+        if precontact:
+            out[name]["plans"] = {str(k): {"actions": list(p.actions), "reason": p.reason,
+                                           "expansions": p.expansions,
+                                           "seconds": p.seconds}
+                                  for k, p in sorted(plans.items())}
+    return out
+
+
+def feasible_observations(sensors: str, settings: HandplanSettings) -> dict[str, int]:
+    """How many of the 2^S - 1 contact readings (some sensor fires) a contact state produces
+    without noise, on the analytic manifold (iso-contours every 1.15 deg, 1 mm pieces);
+    the thesis counts 3 with fingertip sensors and 10 of 2^7 = 128 with seven links."""
+    world = PlanarWorld.load(settings.object_name, sensors=sensors)
+    keys = np.unique(AnalyticManifold(world).keys)
+    keys = keys[keys > 0]
+    return {"sensors": world.sensor_count, "possible": 2 ** world.sensor_count - 1,
+            "feasible": int(len(keys)), "feasible_keys": keys.tolist()}
+
+
+def run_study(part: str, settings: HandplanSettings, out: Path) -> dict:
+    """Run ``part`` (see the module docstring); write summary.json and the plots."""
+    from experiments.handplan_plots import plot_coverage, plot_problem, plot_results
+
+    if part not in PARTS:
+        raise ValueError(f"part must be one of {PARTS}, got {part!r}")
+    out.mkdir(parents=True, exist_ok=True)
+    near = belief_points(settings.belief_count, POST_CONTACT_DISTANCE_M,
+                         rng=_rng(settings, 3))
+    far = [GaussianBelief((PRE_CONTACT_DISTANCE_M, *b.mean[1:]), b.std) for b in near]
+    summary: dict = {"part": part, "settings": _settings_dict(settings),
+                     "belief_means": [list(b.mean) for b in near]}
+    solved: dict[str, SolvedProblem] = {}
+
+    def problem(sensors: str) -> SolvedProblem:
+        if sensors not in solved:
+            solved[sensors] = solve_problem(settings, sensors, near)
+            p = solved[sensors]
+            for name, policy in p.policies.items():
+                policy.save(out / f"policy_{sensors}_{name.lower()}.npz")
+            summary.setdefault("models", {})[sensors] = {
+                "states": len(p.model.pomdp.states), "free_states": p.model.free_count,
+                "contact_states": p.model.contact_count,
+                "observations": len(p.model.pomdp.observations),
+                "timings": p.timings, "solver_bounds": p.bounds[-1][1:],
+                "alpha_vectors": len(p.policies["POMDP"].alphas)}
+        return solved[sensors]
+
+    if part in ("post-contact", "all"):
+        p = problem("fingertips")
+        write_pomdp(p.model.pomdp, out / "hand_fingertips.pomdp")
+        plot_problem(p.model, near, far, out / "problem.png")
+        initial = discretise(p.model, near, settings)
+        summary["post_contact_discrete"] = evaluate_discrete(p, initial, settings)
+        summary["post_contact"] = evaluate_continuous(p, near, settings, precontact=False,
+                                                      label="post-contact")
+    if part in ("full", "all"):
+        p = problem("fingertips")
+        summary["full"] = evaluate_continuous(p, far, settings, precontact=True,
+                                              label="full")
+    if part in ("coverage", "all"):
+        summary["coverage"] = {}
+        for sensors in ("fingertips", "links"):
+            p = problem(sensors)
+            initial = discretise(p.model, near, settings)
+            summary["coverage"][sensors] = {
+                "observations": feasible_observations(sensors, settings),
+                "post_contact_discrete": evaluate_discrete(p, initial, settings),
+                "post_contact": evaluate_continuous(p, near, settings, precontact=False,
+                                                    label=f"coverage {sensors}"),
+                "full": evaluate_continuous(p, far, settings, precontact=True,
+                                            label=f"coverage {sensors} full"),
+            }
+        plot_coverage(summary, out / "coverage.png")
+    plot_results(summary, out)
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    return summary
+
+
+def _settings_dict(settings: HandplanSettings) -> dict:
+    d = asdict(settings)
+    d["spec"]["cell_theta_deg"] = float(np.rad2deg(d["spec"].pop("cell_theta_rad")))
+    return d
+
+
+def _half_width(values: np.ndarray) -> float:
+    return float(1.96 * values.std(ddof=1) / np.sqrt(len(values))) if len(values) > 1 else 0.0
+
+
+def _wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """95 % Wilson score interval of a proportion."""
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return float(centre - half), float(centre + half)
+
+
+def quick_settings(settings: HandplanSettings) -> HandplanSettings:
+    """A small problem for tests and smoke runs (coarse cells, few samples)."""
+    spec = replace(settings.spec, trust_x_m=(0.0, 0.30), trust_y_m=(-0.10, 0.10),
+                   samples_per_state=8)
+    return replace(settings, spec=spec, belief_particles=500, precontact_particles=100,
+                   precontact=replace(settings.precontact, time_limit_s=5.0))
