@@ -9,6 +9,8 @@ Subcommands:
     experiment studies that reproduce the seeds (``experiment mpf``: thesis sec. 4.3;
                ``experiment pushval``: the planar pushing model against Drake;
                ``experiment handplan``: planning by touch, thesis sec. 6.4).
+    pomdp      tabular POMDPs: ``pomdp write`` a built-in benchmark as a Cassandra ``.pomdp``
+               file; ``pomdp solve`` any ``.pomdp`` file with the point-based solver.
     scenes     list the built-in scenes, objects and tactile layouts.
 
 Studies (``experiments/``) are imported lazily, only by the subcommands that run them.
@@ -91,6 +93,9 @@ def main(argv: list[str] | None = None) -> int:
     handplan.add_argument("--seed", type=int, default=0)
     handplan.add_argument("--solve-seconds", type=float, default=300.0,
                           help="point-based solver budget (s)")
+    handplan.add_argument("--solve-trials", type=int, default=None,
+                          help="also stop the solver after this many search trials "
+                               "(reproducible across machines)")
     handplan.add_argument("--plan-seconds", type=float, default=20.0,
                           help="pre-contact search budget per belief (s)")
     handplan.add_argument("--horizon", type=int, default=50, help="post-contact steps")
@@ -100,6 +105,16 @@ def main(argv: list[str] | None = None) -> int:
     handplan.add_argument("--quick", action="store_true",
                           help="a small problem (coarse trust region, few samples) to try it out")
     handplan.add_argument("--out", type=Path, required=True)
+
+    pomdp = commands.add_parser("pomdp", help="write or solve Cassandra .pomdp files")
+    pomdp_kinds = pomdp.add_subparsers(dest="pomdp", required=True)
+    write = pomdp_kinds.add_parser("write", help="write a built-in benchmark as .pomdp")
+    write.add_argument("name", choices=["tiger", "tag", "rocksample_7_8"])
+    write.add_argument("--out", type=Path, required=True, help="the .pomdp file to write")
+    solve = pomdp_kinds.add_parser("solve", help="solve a .pomdp file (point-based solver)")
+    solve.add_argument("file", type=Path)
+    solve.add_argument("--seconds", type=float, default=60.0, help="solver budget (s)")
+    solve.add_argument("--out", type=Path, default=None, help="write the policy (.npz)")
 
     commands.add_parser("scenes", help="list built-in scenes, objects and tactile layouts")
 
@@ -128,6 +143,8 @@ def main(argv: list[str] | None = None) -> int:
             if args.json:
                 args.json.write_text(json.dumps(report, indent=2) + "\n")
             return 0
+        if args.command == "pomdp":
+            return _pomdp(args)
         if args.command == "experiment" and args.study == "pushval":
             return _experiment_pushval(args)
         if args.command == "experiment" and args.study == "handplan":
@@ -137,9 +154,35 @@ def main(argv: list[str] | None = None) -> int:
         for kind in ("scenes", "objects", "tactile", "planar_sensors"):
             print(f"{kind}: {', '.join(builtin_names(kind))}")
         return 0
-    except (ConfigError, ValueError) as err:
+    except (ConfigError, ValueError, OSError) as err:
         print(f"cmanip: error: {err}", file=sys.stderr)
         return 2
+
+
+def _pomdp(args: argparse.Namespace) -> int:
+    from planning.benchmarks import rock_sample, tag, tiger
+    from planning.cassandra import read_pomdp, write_pomdp
+    from planning.point_based import PointBasedSolver
+
+    if args.pomdp == "write":
+        model = {"tiger": tiger, "tag": tag, "rocksample_7_8": rock_sample}[args.name]()
+        write_pomdp(model, args.out)
+        S, A, n_obs = model.shape
+        print(f"wrote {args.out}: {S} states, {A} actions, {n_obs} observations, "
+              f"discount {model.discount}")
+        return 0
+    if args.seconds <= 0:
+        raise ValueError(f"--seconds must be > 0, got {args.seconds}")
+    model = read_pomdp(args.file)
+    solver = PointBasedSolver(model)
+    policy = solver.solve(args.seconds)
+    lower, upper = solver.report.history[-1][1:]
+    print(f"{args.file}: bounds at the initial belief after {args.seconds:g} s: "
+          f"[{lower:.4f}, {upper:.4f}]; {len(policy.alphas)} alpha-vectors")
+    if args.out:
+        policy.save(args.out)
+        print(f"wrote {args.out}")
+    return 0
 
 
 def _experiment_mpf(args: argparse.Namespace) -> int:
@@ -184,7 +227,8 @@ def _experiment_handplan(args: argparse.Namespace) -> int:
         raise ValueError("--solve-seconds and --plan-seconds must be > 0")
     spec = HandProblemSpec.load(args.problem) if args.problem else HandProblemSpec()
     settings = HandplanSettings(trials=args.trials, seed=args.seed,
-                                solve_seconds=args.solve_seconds, horizon=args.horizon,
+                                solve_seconds=args.solve_seconds,
+                                solve_trials=args.solve_trials, horizon=args.horizon,
                                 precontact=PreContactSettings(time_limit_s=args.plan_seconds),
                                 spec=spec)
     if args.quick:

@@ -57,6 +57,8 @@ class HandplanSettings:
         trials: continuous-model episodes per policy (the discrete model gets twice as many).
         seed: master seed.
         solve_seconds: point-based solver budget (s; the thesis ran SARSOP 5 min).
+        solve_trials: also stop the solver after this many search trials; set it for
+            results that do not depend on the machine's speed.
         horizon: post-contact episode length (steps; Fig. 6.5a's depth 50). The full policy
             gets 15 more steps for its 30 cm longer way.
         belief_count: number of Gaussian belief points (thesis: 15).
@@ -70,6 +72,7 @@ class HandplanSettings:
     trials: int = 200
     seed: int = 0
     solve_seconds: float = 300.0
+    solve_trials: int | None = None
     horizon: int = 50
     belief_count: int = 15
     belief_particles: int = 3000
@@ -122,7 +125,8 @@ def solve_problem(settings: HandplanSettings, sensors: str,
             bar.set_postfix(lower=f"{lower:.3f}", upper=f"{upper:.3f}")
 
     start = time.perf_counter()
-    pomdp_policy = solver.solve(settings.solve_seconds, initial_beliefs=initial, callback=show)
+    pomdp_policy = solver.solve(settings.solve_seconds, initial_beliefs=initial, callback=show,
+                                max_trials=settings.solve_trials)
     bar.close()
     solve_s = time.perf_counter() - start
     policies = {"QMDP": qmdp_vectors(Q, model.pomdp.actions), "POMDP": pomdp_policy}

@@ -1,4 +1,5 @@
-"""``cmanip bench pomdp``: the point-based solver on Tag and RockSample(7,8).
+"""``cmanip bench pomdp``: the point-based solver on Tag and RockSample(7,8), and what the
+hand-relative planning problem costs.
 
 Reports the bounds at the initial belief after 10, 30, 60 and 300 s (``quick``: up to
 30 s) and the simulated discounted value of the final policy, acting by one-step
@@ -7,6 +8,12 @@ lookahead on the lower bound (mean and 95 % half-width over ``episodes`` episode
 on this machine (issue 4): Tag lower bound -6.16 after 300 s (policy about -5.96);
 RockSample(7,8) lower bound 20.82 at 10 s, 21.11 at 60 s, 21.17 at 150 s (policy about
 21.8).
+
+The hand-relative problem (``hand``, thesis sec. 6.4.2): time to build the Monte Carlo
+model, to solve QMDP and to run the point-based solver for 60 s (``quick``: 10 s), and the
+median time per step of each policy: choosing an action and the discrete Bayes filter
+update (thesis: QMDP 7.64 ms and SARSOP 7.62 ms per evaluation). The POMDP policy's time is
+also given as a ratio to QMDP's, measured in the same run.
 """
 
 from __future__ import annotations
@@ -15,9 +22,15 @@ import time
 
 import numpy as np
 
+from models.planar.world import PlanarWorld
 from planning.benchmarks import rock_sample, tag
+from planning.hand_beliefs import belief_points
+from planning.hand_discretization import HandProblemSpec
+from planning.hand_policy import qmdp_vectors
+from planning.hand_pomdp import build_hand_pomdp
 from planning.point_based import LookaheadPolicy, PointBasedSolver
-from planning.pomdp import simulate_value
+from planning.pomdp import belief_update, simulate_value
+from planning.qmdp import solve_mdp
 
 CHECKPOINTS_S = (10, 30, 60, 300)
 
@@ -57,6 +70,57 @@ def run_pomdp_bench(*, quick: bool = False, episodes: int = 200, horizon: int = 
         print(f"{name}: " + ", ".join(f"{k} s: [{lo:.3f}, {up:.3f}]"
                                       for k, (lo, up) in bounds.items())
               + f"; policy simulates at {value:.2f} +- {half:.2f}")
+    report["hand"] = hand_problem_bench(quick=quick, seed=seed)
     report["settings"] = {"episodes": episodes, "horizon": horizon, "seed": seed,
                           "checkpoints_s": checkpoints}
     return report
+
+
+def hand_problem_bench(*, quick: bool = False, seed: int = 0, repeats: int = 200) -> dict:
+    """Model building, solving and per-step policy times on the hand-relative problem."""
+    rng = np.random.default_rng(seed)
+    world = PlanarWorld.load("small_box", sensors="fingertips")
+    model = build_hand_pomdp(world, HandProblemSpec(), rng=rng, progress=False)
+    start = time.perf_counter()
+    Q = solve_mdp(model.pomdp)
+    qmdp_s = time.perf_counter() - start
+    beliefs = np.array([model.belief(b.sample(world, 2000, rng=rng))
+                        for b in belief_points(rng=rng)])
+    solver = PointBasedSolver(model.pomdp)
+    budget = 10.0 if quick else 60.0
+    start = time.perf_counter()
+    policy = solver.solve(budget, initial_beliefs=beliefs)
+    solve_s = time.perf_counter() - start
+    policies = {"qmdp": qmdp_vectors(Q, model.pomdp.actions), "pomdp": policy}
+    act_ms = {}
+    for name, p in policies.items():
+        runs = []
+        for i in range(repeats):
+            b = beliefs[i % len(beliefs)]
+            t0 = time.perf_counter()
+            p.act(b)
+            runs.append(time.perf_counter() - t0)
+        act_ms[name] = 1e3 * float(np.median(runs))
+    runs = []
+    for i in range(repeats):
+        b = beliefs[i % len(beliefs)]
+        t0 = time.perf_counter()
+        belief_update(model.pomdp, b, i % 5, 0)
+        runs.append(time.perf_counter() - t0)
+    lower, upper = solver.report.history[-1][1:]
+    out = {
+        "states": len(model.pomdp.states), "free_states": model.free_count,
+        "contact_states": model.contact_count, "build_s": model.build_seconds,
+        "qmdp_solve_s": qmdp_s, "pomdp_solve_s": solve_s, "lower_bound": lower,
+        "upper_bound": upper, "alpha_vectors": len(policy.alphas),
+        "qmdp_act_ms": act_ms["qmdp"], "pomdp_act_ms": act_ms["pomdp"],
+        "pomdp_to_qmdp_act_ratio": act_ms["pomdp"] / act_ms["qmdp"],
+        "belief_update_ms": 1e3 * float(np.median(runs)),
+    }
+    print(f"hand: {out['states']} states ({out['free_states']} free, {out['contact_states']} "
+          f"contact); built in {out['build_s']:.1f} s; QMDP solved in {qmdp_s:.2f} s; "
+          f"point-based {solve_s:.0f} s -> [{lower:.3f}, {upper:.3f}], "
+          f"{out['alpha_vectors']} alpha-vectors; per step: QMDP act {act_ms['qmdp']:.3f} ms, "
+          f"POMDP act {act_ms['pomdp']:.3f} ms ({out['pomdp_to_qmdp_act_ratio']:.1f}x), "
+          f"Bayes update {out['belief_update_ms']:.3f} ms")
+    return out

@@ -311,7 +311,8 @@ class PointBasedSolver:
 
     def solve(self, seconds: float, *, report_every: float = 1.0, callback=None,
               initial_beliefs: np.ndarray | None = None,
-              weights: np.ndarray | None = None) -> AlphaVectorPolicy:
+              weights: np.ndarray | None = None,
+              max_trials: int | None = None) -> AlphaVectorPolicy:
         """Improve the bounds for ``seconds`` of wall time; return the lower-bound policy.
 
         Args:
@@ -326,6 +327,9 @@ class PointBasedSolver:
                 would send it; the reported bounds are the weighted sums, without the
                 fictitious step's discount.
             weights: (K,) probabilities of the initial beliefs (default: equal).
+            max_trials: also stop after this many search trials. A wall-time budget makes
+                the policy depend on the machine's speed; a trial budget makes it a
+                function of the model alone (reproducible).
         """
         start = time.perf_counter()
         roots = (self.m.initial[None, :] if initial_beliefs is None
@@ -349,7 +353,10 @@ class PointBasedSolver:
                 callback(elapsed, lo, up)
 
         record(*bounds())
-        while time.perf_counter() - start < seconds:
+        trials = 0
+        while time.perf_counter() - start < seconds and (max_trials is None
+                                                         or trials < max_trials):
+            trials += 1
             lows, ups = bounds()
             gaps = ups - lows
             if float(w @ gaps) < 1e-6:

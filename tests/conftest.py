@@ -33,3 +33,19 @@ def box_manifold(box_world):
     from estimation.manifolds import AnalyticManifold
 
     return AnalyticManifold(box_world, dtheta_rad=np.deg2rad(3.0))
+
+
+@pytest.fixture(scope="session")
+def small_hand_model():
+    """A small hand-relative planning POMDP: the ch. 6 box, fingertip sensors, a 22 cm x
+    16 cm trust region and 4 Monte Carlo samples per state (a few seconds to build)."""
+    import numpy as np
+
+    from models.planar.world import PlanarWorld
+    from planning.hand_discretization import HandProblemSpec
+    from planning.hand_pomdp import build_hand_pomdp
+
+    world = PlanarWorld.load("small_box", "fingertips")
+    spec = HandProblemSpec(trust_x_m=(0.0, 0.22), trust_y_m=(-0.08, 0.08),
+                           samples_per_state=4)
+    return build_hand_pomdp(world, spec, rng=np.random.default_rng(0), progress=False)

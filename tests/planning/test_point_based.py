@@ -42,3 +42,18 @@ def test_lookahead_policy_on_tiger_listens_when_unsure():
     assert policy.act(np.array([0.999, 0.001])) == 2  # open the other door
     value, _ = simulate_value(model, policy, 400, 100, rng=np.random.default_rng(0))
     assert value > TIGER_OPTIMUM - 3.0
+
+
+def test_several_initial_beliefs_are_planned_for_together():
+    """The augmented POMDP of thesis sec. 6.2.1: bounds are the weighted sums over the
+    initial beliefs, and the one policy is good at each of them."""
+    model = tiger()
+    left, right = np.array([0.85, 0.15]), np.array([0.15, 0.85])
+    solver = PointBasedSolver(model)
+    policy = solver.solve(3.0, initial_beliefs=np.stack([left, right]), weights=[1, 3])
+    lower, upper = solver.report.history[-1][1:]
+    assert lower == pytest.approx(0.25 * solver.lower(left) + 0.75 * solver.lower(right))
+    assert upper - lower < 0.1
+    assert policy.value(left) == pytest.approx(solver.lower(left))
+    with pytest.raises(ValueError, match="columns"):
+        solver.solve(1.0, initial_beliefs=np.ones((1, 3)) / 3)
