@@ -256,6 +256,9 @@ def run_study(part: str, settings: HandplanSettings, out: Path) -> dict:
                      "belief_means": [list(b.mean) for b in near]}
     solved: dict[str, SolvedProblem] = {}
 
+    def checkpoint():
+        (out / "summary.json").write_text(json.dumps(summary, indent=2))
+
     def problem(sensors: str) -> SolvedProblem:
         if sensors not in solved:
             solved[sensors] = solve_problem(settings, sensors, near)
@@ -278,10 +281,12 @@ def run_study(part: str, settings: HandplanSettings, out: Path) -> dict:
         summary["post_contact_discrete"] = evaluate_discrete(p, initial, settings)
         summary["post_contact"] = evaluate_continuous(p, near, settings, precontact=False,
                                                       label="post-contact")
+        checkpoint()
     if part in ("full", "all"):
         p = problem("fingertips")
         summary["full"] = evaluate_continuous(p, far, settings, precontact=True,
                                               label="full")
+        checkpoint()
     if part in ("coverage", "all"):
         summary["coverage"] = {}
         for sensors in ("fingertips", "links"):
@@ -297,7 +302,7 @@ def run_study(part: str, settings: HandplanSettings, out: Path) -> dict:
             }
         plot_coverage(summary, out / "coverage.png")
     plot_results(summary, out)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    checkpoint()
     return summary
 
 
