@@ -98,6 +98,8 @@ def main(argv: list[str] | None = None) -> int:
                                "(reproducible across machines)")
     handplan.add_argument("--plan-seconds", type=float, default=20.0,
                           help="pre-contact search budget per belief (s)")
+    handplan.add_argument("--search-until-contact", action="store_true",
+                          help="pre-contact search ignores the 85 %% trust-region stop")
     handplan.add_argument("--horizon", type=int, default=50, help="post-contact steps")
     handplan.add_argument("--problem", type=Path, default=None,
                           help="YAML of HandProblemSpec fields (trust region, cells, goal, "
@@ -229,12 +231,15 @@ def _experiment_handplan(args: argparse.Namespace) -> int:
     settings = HandplanSettings(trials=args.trials, seed=args.seed,
                                 solve_seconds=args.solve_seconds,
                                 solve_trials=args.solve_trials, horizon=args.horizon,
-                                precontact=PreContactSettings(time_limit_s=args.plan_seconds),
+                                precontact=PreContactSettings(
+                                    time_limit_s=args.plan_seconds,
+                                    trust_mass_stop=None if args.search_until_contact else 0.85),
                                 spec=spec)
     if args.quick:
         settings = quick_settings(settings)
-        settings = replace(settings, precontact=replace(settings.precontact,
-                                                        time_limit_s=args.plan_seconds))
+        settings = replace(settings, precontact=replace(
+            settings.precontact, time_limit_s=args.plan_seconds,
+            trust_mass_stop=None if args.search_until_contact else 0.85))
     summary = run_study(args.part, settings, args.out)
     for key, label in (("post_contact_discrete", "post-contact, discrete model"),
                        ("post_contact", "post-contact, continuous model"),

@@ -47,7 +47,8 @@ class PreContactSettings:
         inflation: heuristic inflation e_w (thesis: 2).
         horizon: lookahead depth H (steps).
         time_limit_s: wall-time budget per search (thesis: 20 s).
-        trust_mass_stop: stop at a vertex with this much belief in the trust region.
+        trust_mass_stop: stop at a vertex with this much belief in the trust region
+            (None: never; the search then runs until contact, the horizon or the time limit).
         contact_stop: stop at a vertex whose no-contact probability is below this.
         merge_duplicates: merge vertices with the same time and net displacement.
     """
@@ -55,13 +56,16 @@ class PreContactSettings:
     inflation: float = 2.0
     horizon: int = 50
     time_limit_s: float = 20.0
-    trust_mass_stop: float = 0.85
+    trust_mass_stop: float | None = 0.85
     contact_stop: float = 1e-3
     merge_duplicates: bool = True
 
     def __post_init__(self):
         if self.inflation < 1 or self.horizon < 1 or self.time_limit_s <= 0:
             raise ValueError("inflation must be >= 1, horizon >= 1 and time_limit_s > 0")
+        if self.trust_mass_stop is not None and not 0 < self.trust_mass_stop <= 1:
+            raise ValueError(f"trust_mass_stop must be in (0, 1] or None, got "
+                             f"{self.trust_mass_stop}")
 
 
 @dataclass(frozen=True)
@@ -175,7 +179,8 @@ class PreContactPlanner:
             if v.p_nc < s.contact_stop:
                 reason, best = "contact", (v.cost, v)
                 break
-            if float(v.weights @ self.model.discretization.inside(v.poses)) >= s.trust_mass_stop:
+            if s.trust_mass_stop is not None and float(
+                    v.weights @ self.model.discretization.inside(v.poses)) >= s.trust_mass_stop:
                 reason, best = "trust_region", (v.cost, v)
                 break
             if time.perf_counter() - start > s.time_limit_s:
