@@ -12,16 +12,20 @@
 - Pruning: alpha-vectors that are best at none of the visited beliefs are dropped every
   ``prune_every`` backups.
 
-Beliefs are dense (S,) vectors but every product uses their support only, which is what
-keeps RockSample(7,8) (12,545 states, beliefs over at most 256) tractable in numpy.
+Inside the search a belief is its support and the probabilities there; predictions gather
+only the rows of T in the support, and only the chosen action's alpha-vector is built over
+all states. That is what keeps RockSample(7,8) (12,545 states, beliefs over at most 256)
+tractable in numpy.
 """
 
 from __future__ import annotations
 
+import bisect
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 
@@ -119,10 +123,14 @@ class PointBasedSolver:
         self.gap_fraction = gap_fraction
         self.max_depth = max_depth
         self.prune_every = prune_every
+        self._T_csr = [(t.indptr, t.indices, t.data) for t in
+                       (sp.csr_matrix(t, dtype=float) for t in pomdp.T)]
+        self._scratch = np.zeros(S)  # a dense belief, zero between uses (upper-bound points)
         self.TZ = [[sp.csr_matrix(pomdp.T[a].multiply(pomdp.Z[a, :, o][None, :]))
                     for o in range(n_obs)] for a in range(A)]
         blind, blind_actions = self._blind_policies()
-        self._alpha_buffer = np.empty((max(64, 4 * len(blind)), S))
+        # column-major: the search reads alphas[:, support], a few contiguous columns
+        self._alpha_buffer = np.empty((max(64, 4 * len(blind)), S), order="F")
         self._action_buffer = np.empty(len(self._alpha_buffer), dtype=np.int64)
         self._alpha_count = 0
         for alpha, action in zip(blind, blind_actions, strict=True):
@@ -146,8 +154,9 @@ class PointBasedSolver:
     def _add_alpha(self, alpha: np.ndarray, action: int) -> None:
         """Append to the buffers, doubling them when full (no copy of all K per backup)."""
         if self._alpha_count == len(self._alpha_buffer):
-            self._alpha_buffer = np.concatenate([self._alpha_buffer,
-                                                 np.empty_like(self._alpha_buffer)])
+            grown = np.empty((2 * len(self._alpha_buffer), self.m.shape[0]), order="F")
+            grown[:self._alpha_count] = self._alpha_buffer
+            self._alpha_buffer = grown
             self._action_buffer = np.concatenate([self._action_buffer,
                                                   np.empty_like(self._action_buffer)])
         self._alpha_buffer[self._alpha_count] = alpha
@@ -187,85 +196,96 @@ class PointBasedSolver:
             Q = new
         return Q
 
+    # -- bounds at a belief. Inside the search a belief is local: its support (m,) (sorted
+    # state indices) and the probabilities there (m,); every product runs over the support.
     def lower(self, belief: np.ndarray) -> float:
-        support = np.flatnonzero(belief)
-        return float(np.max(self.alphas[:, support] @ belief[support]))
+        return self._lower_local(*_local(belief))
 
     def upper(self, belief: np.ndarray) -> float:
         """Sawtooth interpolation over the corner values and the stored points."""
-        return float(self.upper_many(belief[None, :])[0])
+        support, probs = _local(belief)
+        return float(self._upper_local(support, probs[None, :])[0])
 
-    def upper_many(self, beliefs: np.ndarray, span: tuple[int, int] | None = None) -> np.ndarray:
-        """(K,) sawtooth upper bounds of (K, S) beliefs; ``span`` = (first, last) state index
-        that any of them can be non-zero at, when the caller knows it."""
-        return beliefs @ self.corner + self.points.correction(beliefs, span)
+    def _lower_local(self, support: np.ndarray, probs: np.ndarray) -> float:
+        return float(np.max(self.alphas[:, support] @ probs))
 
-    def _expand(self, belief: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        """Per action: (predicted belief (S,), p(o | b, a) (O,), posteriors (O, S)); the
-        products run over the predicted belief's support only."""
-        S, A, n_obs = self.m.shape
+    def _upper_local(self, support: np.ndarray, beliefs: np.ndarray) -> np.ndarray:
+        """(K,) upper bounds of (K, m) beliefs that share the ``support`` (m,)."""
+        return beliefs @ self.corner[support] + self.points.correction(support, beliefs,
+                                                                       self._scratch)
+
+    def _expand(self, support: np.ndarray, probs: np.ndarray) -> list[tuple]:
+        """Per action: (support of the prediction (m,), prediction (m,), p(o | b, a) (O,),
+        posteriors (O, m)). The prediction gathers only the rows of T in the support."""
+        n_obs = self.m.shape[2]
         out = []
-        for a in range(A):
-            predicted = self.m.T[a].T @ belief
-            nz = np.flatnonzero(predicted)
-            joint = predicted[nz][None, :] * self.m.Z[a, nz, :].T  # (O, |nz|)
+        for a in range(self.m.shape[1]):
+            indptr, indices, data = self._T_csr[a]
+            starts, counts = indptr[support], indptr[support + 1] - indptr[support]
+            first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+            entry = np.repeat(starts - first, counts) + np.arange(counts.sum())
+            cols = indices[entry]
+            nz, inverse = np.unique(cols, return_inverse=True)
+            predicted = np.bincount(inverse, weights=data[entry] * np.repeat(probs, counts),
+                                    minlength=len(nz))
+            joint = predicted[None, :] * self.m.Z[a, nz, :].T  # (O, m)
             p = joint.sum(axis=1)
-            post = np.zeros((n_obs, S))
+            post = np.zeros((n_obs, len(nz)))
             possible = p > 0
-            post[np.ix_(possible, nz)] = joint[possible] / p[possible, None]
-            out.append((predicted, p, post))
+            post[possible] = joint[possible] / p[possible, None]
+            out.append((nz, predicted, p, post))
         return out
 
-    def _q_upper(self, belief: np.ndarray, kids) -> tuple[np.ndarray, list[np.ndarray]]:
+    def _q_upper(self, support, probs, kids) -> tuple[np.ndarray, list[np.ndarray]]:
         """Upper-bound Q(b, a) for every action and the children's upper bounds (A x (O,))."""
-        A = self.m.shape[1]
-        q = np.empty(A)
-        r = belief @ self.m.R
+        q = probs @ self.m.R[support]
         ups_all = []
-        for a, (predicted, p, post) in enumerate(kids):
+        for a, (nz, _, p, post) in enumerate(kids):
             ups = np.zeros(len(p))
             possible = p > 0
-            nz = np.flatnonzero(predicted)
             if len(nz):
-                ups[possible] = self.upper_many(post[possible], (int(nz[0]), int(nz[-1])))
-            q[a] = r[a] + self.gamma * p @ ups
+                ups[possible] = self._upper_local(nz, post[possible])
+            q[a] += self.gamma * p @ ups
             ups_all.append(ups)
         return q, ups_all
 
     # -- backups
-    def _backup_lower(self, belief: np.ndarray, kids) -> None:
+    def _backup_lower(self, support, probs, kids) -> None:
+        """Point-based backup: the value of every action is computed on the supports; only
+        the best action's alpha-vector is built over all states."""
         S, A, n_obs = self.m.shape
-        support = np.flatnonzero(belief)
-        best_value, best_alpha, best_action = -np.inf, None, -1
-        for a, (predicted, p, post) in enumerate(kids):
-            g = np.zeros(S)
-            pnz = np.flatnonzero(predicted)
-            # the best alpha at every posterior; impossible observations still need a
-            # branch in the plan: they take the best alpha at the prediction
-            fallback = int(np.argmax(self.alphas[:, pnz] @ predicted[pnz]))
-            best = np.full(n_obs, fallback)
-            possible = np.flatnonzero(p > 0)
-            if len(possible):
-                best[possible] = np.argmax(post[np.ix_(possible, pnz)] @ self.alphas[:, pnz].T,
-                                           axis=1)
-            for o in range(n_obs):
-                g += self.m.Z[a, :, o] * self.alphas[best[o]]
-            alpha = self.m.R[:, a] + self.gamma * (self.m.T[a] @ g)
-            value = float(alpha[support] @ belief[support])
+        rewards = probs @ self.m.R[support]
+        best_value, best_action, best_choice = -np.inf, -1, None
+        for a, (nz, predicted, _, _) in enumerate(kids):
+            local = self.alphas[:, nz]  # (K, m)
+            joint = predicted[None, :] * self.m.Z[a, nz, :].T  # (O, m)
+            values = joint @ local.T  # (O, K)
+            choice = np.argmax(values, axis=1)
+            # an impossible observation still needs a branch in the plan: it takes the
+            # best alpha at the prediction (its value there is 0 either way)
+            impossible = joint.sum(axis=1) <= 0
+            if impossible.any():
+                choice[impossible] = int(np.argmax(local @ predicted))
+            value = rewards[a] + self.gamma * float(values[np.arange(n_obs), choice].sum())
             if value > best_value:
-                best_value, best_alpha, best_action = value, alpha, a
-        if best_value > self.lower(belief) + 1e-9:
-            self._add_alpha(best_alpha, best_action)
-            self.report.backups += 1
-            self._new_alphas += 1
-            if self._new_alphas >= self.prune_every:
-                self._prune()
+                best_value, best_action, best_choice = value, a, choice
+        if best_value <= self._lower_local(support, probs) + 1e-9:
+            return
+        g = np.zeros(S)
+        for o in range(n_obs):
+            g += self.m.Z[best_action, :, o] * self.alphas[best_choice[o]]
+        alpha = self.m.R[:, best_action] + self.gamma * (self.m.T[best_action] @ g)
+        self._add_alpha(alpha, best_action)
+        self.report.backups += 1
+        self._new_alphas += 1
+        if self._new_alphas >= self.prune_every:
+            self._prune()
 
-    def _backup_upper(self, belief: np.ndarray, kids) -> None:
-        q, _ = self._q_upper(belief, kids)
+    def _backup_upper(self, support, probs, kids) -> None:
+        q, _ = self._q_upper(support, probs, kids)
         value = float(q.max())
-        if value < self.upper(belief) - 1e-9:
-            self.points.add(belief, value - float(self.corner @ belief))
+        if value < float(self._upper_local(support, probs[None, :])[0]) - 1e-9:
+            self.points.add(support, probs, value - float(self.corner[support] @ probs))
 
     def _prune(self) -> None:
         """Keep the alpha-vectors that are best at some visited belief (and the blind ones)."""
@@ -286,28 +306,29 @@ class PointBasedSolver:
         self._action_buffer[:len(index)] = kept_actions
 
     # -- search
-    def _explore(self, belief: np.ndarray, epsilon: float, depth: int) -> None:
-        gap = self.upper(belief) - self.lower(belief)
+    def _explore(self, support: np.ndarray, probs: np.ndarray, epsilon: float,
+                 depth: int) -> None:
+        gap = (float(self._upper_local(support, probs[None, :])[0])
+               - self._lower_local(support, probs))
         if gap <= epsilon * self.gamma ** (-depth) or depth >= self.max_depth:
             return
         if len(self.visited) < 5000:
-            support = np.flatnonzero(belief)
-            self.visited.append((support, belief[support]))
-        kids = self._expand(belief)
-        q, ups_all = self._q_upper(belief, kids)
+            self.visited.append((support, probs))
+        kids = self._expand(support, probs)
+        q, ups_all = self._q_upper(support, probs, kids)
         a = int(np.argmax(q))
-        _, p, post = kids[a]
+        nz, _, p, post = kids[a]
         ups = ups_all[a]
         target = epsilon * self.gamma ** (-(depth + 1))
         scores = np.full(len(p), -np.inf)
         possible = p > 0
-        cols = np.flatnonzero(post[possible].any(axis=0))
-        lows = (post[np.ix_(possible, cols)] @ self.alphas[:, cols].T).max(axis=1)
+        lows = (post[possible] @ self.alphas[:, nz].T).max(axis=1)
         scores[possible] = p[possible] * (ups[possible] - lows - target)
         o = int(np.argmax(scores))
-        self._explore(post[o], epsilon, depth + 1)
-        self._backup_lower(belief, kids)
-        self._backup_upper(belief, kids)
+        keep = post[o] > 0
+        self._explore(nz[keep], post[o][keep], epsilon, depth + 1)
+        self._backup_lower(support, probs, kids)
+        self._backup_upper(support, probs, kids)
 
     def solve(self, seconds: float, *, report_every: float = 1.0, callback=None,
               initial_beliefs: np.ndarray | None = None,
@@ -362,7 +383,7 @@ class PointBasedSolver:
             if float(w @ gaps) < 1e-6:
                 break
             k = int(np.argmax(w * gaps))
-            self._explore(roots[k], self.gap_fraction * gaps[k], 0)
+            self._explore(*_local(roots[k]), self.gap_fraction * gaps[k], 0)
             if time.perf_counter() - last >= report_every:
                 record(*bounds())
                 last = time.perf_counter()
@@ -374,71 +395,107 @@ class PointBasedSolver:
 
 
 class _UpperPoints:
-    """Belief-value points of the upper bound, stored flat for the sawtooth:
+    """Belief-value points of the upper bound, for the sawtooth:
     ``correction(b) = min(0, min_i excess_i * min_{s in supp b_i} b(s) / b_i(s))``.
 
     Only points whose support lies inside the belief's support can lower the bound (any
-    other has a ratio of 0). Points are kept sorted by their smallest state index, so the
-    candidates for a belief are a contiguous run found by binary search; structured
+    other has a ratio of 0). Points are grouped by their smallest state index, and a
+    belief looks only at the groups whose index lies in its support's range; structured
     models (RockSample, Tag: the robot's position is known, beliefs live in one block of
-    states) then touch a small fraction of the points.
+    states) then touch a small fraction of the points. A group's flat arrays are rebuilt
+    only when a point joins it.
     """
 
     def __init__(self):
-        self._support: list[np.ndarray] = []
-        self._probs: list[np.ndarray] = []
-        self._excess: list[float] = []
-        self._flat = None
+        self._groups: dict[int, _PointGroup] = {}
+        self._keys: list[int] = []
+        self._count = 0
 
     def __len__(self) -> int:
-        return len(self._excess)
+        return self._count
 
-    def add(self, belief: np.ndarray, excess: float) -> None:
-        support = np.flatnonzero(belief)
-        self._support.append(support)
-        self._probs.append(belief[support].copy())
-        self._excess.append(excess)
+    def add(self, support: np.ndarray, probs: np.ndarray, excess: float) -> None:
+        key = int(support[0])
+        if key not in self._groups:
+            self._groups[key] = _PointGroup()
+            bisect.insort(self._keys, key)
+        self._groups[key].add(support, probs, excess)
+        self._count += 1
+
+    def correction(self, support: np.ndarray, beliefs: np.ndarray,
+                   scratch: np.ndarray) -> np.ndarray:
+        """(K,) sawtooth corrections (<= 0) for (K, m) beliefs on the sorted ``support``.
+
+        ``scratch`` is an all-zero (S,) buffer: each belief is scattered into it to read
+        its probabilities at a point's states, and it is zero again on return.
+        """
+        out = np.zeros(len(beliefs))
+        if not self._count or len(support) == 0:
+            return out
+        begin, end = int(support[0]), int(support[-1])
+        keys = self._keys[bisect.bisect_left(self._keys, begin):
+                          bisect.bisect_right(self._keys, end)]
+        if not keys:
+            return out
+        groups = [self._groups[key].flat() for key in keys]
+        try:
+            for k, belief in enumerate(beliefs):
+                scratch[support] = belief
+                for points, probs, starts, hi, excess in groups:
+                    out[k] = min(out[k], _sawtooth(points, probs, starts, hi, excess, end,
+                                                   scratch))
+        finally:
+            scratch[support] = 0.0
+        return out
+
+
+class _PointGroup:
+    """Upper-bound points that share their smallest state index, stored flat."""
+
+    def __init__(self):
+        self.supports: list[np.ndarray] = []
+        self.probs: list[np.ndarray] = []
+        self.excess: list[float] = []
         self._flat = None
 
-    def _build(self):
-        lo = np.array([sup[0] for sup in self._support])
-        order = np.argsort(lo, kind="stable")
-        lengths = np.array([len(self._support[i]) for i in order])
-        starts = np.concatenate([[0], np.cumsum(lengths)])
-        self._flat = (np.concatenate([self._support[i] for i in order]),
-                      np.concatenate([self._probs[i] for i in order]), starts, lo[order],
-                      np.array([self._support[i][-1] for i in order]),
-                      np.array([self._excess[i] for i in order]))
+    def add(self, support: np.ndarray, probs: np.ndarray, excess: float) -> None:
+        self.supports.append(support)
+        self.probs.append(probs.copy())
+        self.excess.append(excess)
+        self._flat = None
 
-    def correction(self, beliefs: np.ndarray,
-                   span: tuple[int, int] | None = None) -> np.ndarray:
-        """(K,) sawtooth corrections (<= 0) for (K, S) beliefs. ``span`` bounds their
-        supports (a superset is fine: points reaching outside a belief's own support get a
-        ratio of 0 and change nothing)."""
-        out = np.zeros(len(beliefs))
-        if not self._excess:
-            return out
+    def flat(self):
+        """(states, probabilities, start offsets (n + 1,), largest state (n,), excess (n,))."""
         if self._flat is None:
-            self._build()
-        support, probs, starts, lo, hi, excess = self._flat
-        for k, belief in enumerate(beliefs):
-            if span is None:
-                nz = np.flatnonzero(belief)
-                if len(nz) == 0:
-                    continue
-                begin, end = nz[0], nz[-1]
-            else:
-                begin, end = span
-            first = int(np.searchsorted(lo, begin, side="left"))
-            last = int(np.searchsorted(lo, end, side="right"))
-            if first >= last:
-                continue
-            inside = np.flatnonzero(hi[first:last] <= end) + first
-            if len(inside) == 0:
-                continue
-            a, b = starts[first], starts[last]
-            ratios = np.minimum.reduceat(belief[support[a:b]] / probs[a:b],
-                                         starts[first:last] - a)
-            best = (ratios[inside - first] * excess[inside]).min()
-            out[k] = min(0.0, best)
-        return out
+            lengths = np.array([len(sup) for sup in self.supports])
+            self._flat = (np.concatenate(self.supports), np.concatenate(self.probs),
+                          np.concatenate([[0], np.cumsum(lengths)]),
+                          np.array([sup[-1] for sup in self.supports]),
+                          np.array(self.excess))
+        return self._flat
+
+
+@numba.njit(cache=True)
+def _sawtooth(points, probs, starts, hi, excess, end, belief):  # pragma: no cover (compiled)
+    """min(0, min_i excess_i min_j belief[points_ij] / probs_ij) over the points of one
+    group whose largest state is at most ``end``; a ratio stops at its first zero."""
+    best = 0.0
+    for i in range(len(excess)):
+        if hi[i] > end:
+            continue
+        ratio = np.inf
+        for j in range(starts[i], starts[i + 1]):
+            r = belief[points[j]] / probs[j]
+            if r < ratio:
+                ratio = r
+                if ratio == 0.0:
+                    break
+        if ratio * excess[i] < best:
+            best = ratio * excess[i]
+    return best
+
+
+def _local(belief: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A dense (S,) belief as (support, probabilities)."""
+    support = np.flatnonzero(belief)
+    return support, belief[support]
