@@ -76,18 +76,21 @@ def run_pomdp_bench(*, quick: bool = False, episodes: int = 200, horizon: int = 
     return report
 
 
-def hand_problem_bench(*, quick: bool = False, seed: int = 0, repeats: int = 200) -> dict:
-    """Model building, solving and per-step policy times on the hand-relative problem."""
+def hand_problem_bench(*, quick: bool = False, seed: int = 0, repeats: int = 200,
+                       spec: HandProblemSpec | None = None,
+                       solve_seconds: float | None = None) -> dict:
+    """Model building, solving and per-step policy times on the hand-relative problem
+    (``spec`` and ``solve_seconds`` override the defaults, for tests)."""
     rng = np.random.default_rng(seed)
     world = PlanarWorld.load("small_box", sensors="fingertips")
-    model = build_hand_pomdp(world, HandProblemSpec(), rng=rng, progress=False)
+    model = build_hand_pomdp(world, spec or HandProblemSpec(), rng=rng, progress=False)
     start = time.perf_counter()
     Q = solve_mdp(model.pomdp)
     qmdp_s = time.perf_counter() - start
     beliefs = np.array([model.belief(b.sample(world, 2000, rng=rng))
                         for b in belief_points(rng=rng)])
     solver = PointBasedSolver(model.pomdp)
-    budget = 10.0 if quick else 60.0
+    budget = solve_seconds or (10.0 if quick else 60.0)
     start = time.perf_counter()
     policy = solver.solve(budget, initial_beliefs=beliefs)
     solve_s = time.perf_counter() - start

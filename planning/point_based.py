@@ -256,8 +256,12 @@ class PointBasedSolver:
         S, A, n_obs = self.m.shape
         rewards = probs @ self.m.R[support]
         best_value, best_action, best_choice = -np.inf, -1, None
+        gathered: dict[bytes, np.ndarray] = {}  # actions that keep the support share it
         for a, (nz, predicted, _, _) in enumerate(kids):
-            local = self.alphas[:, nz]  # (K, m)
+            key = nz.tobytes()
+            if key not in gathered:
+                gathered[key] = self.alphas[:, nz]  # (K, m)
+            local = gathered[key]
             joint = predicted[None, :] * self.m.Z[a, nz, :].T  # (O, m)
             values = joint @ local.T  # (O, K)
             choice = np.argmax(values, axis=1)
