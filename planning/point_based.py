@@ -236,18 +236,18 @@ class PointBasedSolver:
             out.append((nz, predicted, p, post))
         return out
 
-    def _q_upper(self, support, probs, kids) -> tuple[np.ndarray, list[np.ndarray]]:
-        """Upper-bound Q(b, a) for every action and the children's upper bounds (A x (O,))."""
-        q = probs @ self.m.R[support]
-        ups_all = []
-        for a, (nz, _, p, post) in enumerate(kids):
-            ups = np.zeros(len(p))
+    def _q_upper(self, support, probs, kids,
+                 actions: range | list[int] | None = None) -> np.ndarray:
+        """(A,) upper-bound Q(b, a); only for ``actions`` (default: all; the others are
+        left at +inf)."""
+        q = np.full(len(kids), np.inf)
+        rewards = probs @ self.m.R[support]
+        for a in range(len(kids)) if actions is None else actions:
+            nz, _, p, post = kids[a]
             possible = p > 0
-            if len(nz):
-                ups[possible] = self._upper_local(nz, post[possible])
-            q[a] += self.gamma * p @ ups
-            ups_all.append(ups)
-        return q, ups_all
+            ups = self._upper_local(nz, post[possible]) if len(nz) else np.zeros(0)
+            q[a] = rewards[a] + self.gamma * p[possible] @ ups
+        return q
 
     # -- backups
     def _backup_lower(self, support, probs, kids) -> None:
@@ -285,8 +285,12 @@ class PointBasedSolver:
         if self._new_alphas >= self.prune_every:
             self._prune()
 
-    def _backup_upper(self, support, probs, kids) -> None:
-        q, _ = self._q_upper(support, probs, kids)
+    def _backup_upper(self, support, probs, kids, q: np.ndarray, explored: int) -> None:
+        """Back up the upper bound. Only the explored action's Q is recomputed: the others'
+        children did not change, and an upper bound computed earlier stays an upper bound
+        (the bound only tightens)."""
+        q = q.copy()
+        q[explored] = self._q_upper(support, probs, kids, [explored])[explored]
         value = float(q.max())
         if value < float(self._upper_local(support, probs[None, :])[0]) - 1e-9:
             self.points.add(support, probs, value - float(self.corner[support] @ probs))
@@ -319,20 +323,20 @@ class PointBasedSolver:
         if len(self.visited) < 5000:
             self.visited.append((support, probs))
         kids = self._expand(support, probs)
-        q, ups_all = self._q_upper(support, probs, kids)
+        q = self._q_upper(support, probs, kids)
         a = int(np.argmax(q))
         nz, _, p, post = kids[a]
-        ups = ups_all[a]
         target = epsilon * self.gamma ** (-(depth + 1))
         scores = np.full(len(p), -np.inf)
         possible = p > 0
+        ups = self._upper_local(nz, post[possible])
         lows = (post[possible] @ self.alphas[:, nz].T).max(axis=1)
-        scores[possible] = p[possible] * (ups[possible] - lows - target)
+        scores[possible] = p[possible] * (ups - lows - target)
         o = int(np.argmax(scores))
         keep = post[o] > 0
         self._explore(nz[keep], post[o][keep], epsilon, depth + 1)
         self._backup_lower(support, probs, kids)
-        self._backup_upper(support, probs, kids)
+        self._backup_upper(support, probs, kids, q, a)
 
     def solve(self, seconds: float, *, report_every: float = 1.0, callback=None,
               initial_beliefs: np.ndarray | None = None,

@@ -166,25 +166,23 @@ class PreContactPlanner:
         # ties in priority go to the vertex with the smaller heuristic, then the older one
         frontier = [(s.inflation * self._h(root), self._h(root), 0, root)]
         best_cost: dict[tuple, float] = {}
-        best = (np.inf, root)
         counter, expansions, reason = 1, 0, "exhausted"
+        v = root
         while frontier:
-            _, h, _, v = heapq.heappop(frontier)
+            _, _, _, v = heapq.heappop(frontier)
             expansions += 1
-            if v.cost + h < best[0]:
-                best = (v.cost + h, v)
             if v.t >= s.horizon:
-                reason, best = "horizon", (v.cost, v)
+                reason = "horizon"
                 break
             if v.p_nc < s.contact_stop:
-                reason, best = "contact", (v.cost, v)
+                reason = "contact"
                 break
             if s.trust_mass_stop is not None and float(
                     v.weights @ self.model.discretization.inside(v.poses)) >= s.trust_mass_stop:
-                reason, best = "trust_region", (v.cost, v)
+                reason = "trust_region"
                 break
-            if time.perf_counter() - start > s.time_limit_s:
-                reason = "time_limit"
+            if expansions > 1 and time.perf_counter() - start > s.time_limit_s:
+                reason = "time_limit"  # v, the vertex it was about to expand, is its best guess
                 break
             for child in self._children(v, rng):
                 key = (child.t, child.displacement) if s.merge_duplicates else (counter,)
@@ -195,6 +193,5 @@ class PreContactPlanner:
                 heapq.heappush(frontier, (child.cost + s.inflation * h_child, h_child, counter,
                                           child))
                 counter += 1
-        v = best[1]
         return PreContactPlan(v.actions, v.cost, expansions, time.perf_counter() - start,
                               reason)

@@ -83,3 +83,13 @@ def test_post_contact_policy_alone_acts_on_a_discrete_belief(small_hand_model, q
     assert policy.act() == qmdp.act(b)
     policy.observe(policy.act(), np.array([False, False]), rng=np.random.default_rng(0))
     assert policy.discrete.sum() == pytest.approx(1.0)
+
+
+def test_time_limit_returns_the_frontier_path_not_the_root(small_hand_model, qmdp):
+    m = small_hand_model
+    settings = PreContactSettings(time_limit_s=1e-9, trust_mass_stop=None)
+    planner = PreContactPlanner(m, qmdp, settings)
+    particles = GaussianBelief((0.40, 0.0, 0.0), (0.02, 0.02, 0.2)).sample(
+        m.world, 30, rng=np.random.default_rng(4))
+    plan = planner.plan(particles, rng=np.random.default_rng(5))
+    assert plan.reason == "time_limit" and len(plan.actions) == 1
