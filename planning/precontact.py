@@ -21,7 +21,10 @@ an upper bound on value, so ``h`` never overestimates the cost-to-go. Vertices a
 ordered by ``f + e_w h`` with ``e_w = 2``. The search stops (sec. 6.4.3) when it expands a
 vertex at depth ``H``, one where contact is (almost) certain, one with at least 85 % of the
 belief in the trust region (the post-contact policy takes over there), or when the time
-limit passes; then it returns the expanded vertex with the smallest ``f + h``.
+limit passes (checked once the root is expanded). It returns the path to the vertex it has
+just taken from the frontier: at a stop rule the one that met it, at the time limit the one
+it would have expanded next (with an admissible ``h`` the root itself has the smallest
+``f + h``, so that is no guide).
 
 One addition to the thesis: vertices reached by the same net hand displacement at the same
 time are merged (``merge_duplicates``). Their beliefs differ only through particles that
