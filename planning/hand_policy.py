@@ -82,7 +82,9 @@ class HandPolicy:
         """The next action index; a ``belief`` given here replaces the tracked one (and
         re-plans before contact, which needs ``rng``)."""
         if belief is not None:
-            self.reset(belief, rng=rng if rng is not None else np.random.default_rng(0))
+            if rng is None:
+                raise ValueError("act(belief) restarts the policy from that belief; pass rng")
+            self.reset(belief, rng=rng)
         if self.discrete is not None:
             return self.post_contact.act(self.discrete)
         return self.plan.actions[self._step]

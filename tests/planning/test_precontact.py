@@ -93,3 +93,12 @@ def test_time_limit_returns_the_frontier_path_not_the_root(small_hand_model, qmd
         m.world, 30, rng=np.random.default_rng(4))
     plan = planner.plan(particles, rng=np.random.default_rng(5))
     assert plan.reason == "time_limit" and len(plan.actions) == 1
+
+
+def test_act_on_a_new_belief_needs_a_generator(small_hand_model, qmdp):
+    m = small_hand_model
+    policy = HandPolicy(m, qmdp)
+    b = m.belief(np.array([[0.19, 0.05, 0.0]]))
+    with pytest.raises(ValueError, match="rng"):
+        policy.act(b)
+    assert policy.act(b, rng=np.random.default_rng(0)) == qmdp.act(b)
