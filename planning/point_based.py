@@ -207,7 +207,12 @@ class PointBasedSolver:
         return float(self._upper_local(support, probs[None, :])[0])
 
     def _lower_local(self, support: np.ndarray, probs: np.ndarray) -> float:
-        return float(np.max(self.alphas[:, support] @ probs))
+        return float(np.max(self._products(support, probs[None, :])))
+
+    def _products(self, columns: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """(R, K) products of (R, m) local beliefs on ``columns`` (m,) with every alpha."""
+        return _alpha_products(self._alpha_buffer, self._alpha_count, columns,
+                               np.ascontiguousarray(rows))
 
     def _upper_local(self, support: np.ndarray, beliefs: np.ndarray) -> np.ndarray:
         """(K,) upper bounds of (K, m) beliefs that share the ``support`` (m,)."""
@@ -256,20 +261,15 @@ class PointBasedSolver:
         S, A, n_obs = self.m.shape
         rewards = probs @ self.m.R[support]
         best_value, best_action, best_choice = -np.inf, -1, None
-        gathered: dict[bytes, np.ndarray] = {}  # actions that keep the support share it
-        for a, (nz, predicted, _, _) in enumerate(kids):
-            key = nz.tobytes()
-            if key not in gathered:
-                gathered[key] = self.alphas[:, nz]  # (K, m)
-            local = gathered[key]
-            joint = predicted[None, :] * self.m.Z[a, nz, :].T  # (O, m)
-            values = joint @ local.T  # (O, K)
-            choice = np.argmax(values, axis=1)
+        for a, (nz, predicted, p, post) in enumerate(kids):
+            joint = post * p[:, None]  # (O, m): p(o, s' | b, a)
+            values = self._products(nz, np.vstack([joint, predicted]))  # (O + 1, K)
+            choice = np.argmax(values[:n_obs], axis=1)
             # an impossible observation still needs a branch in the plan: it takes the
             # best alpha at the prediction (its value there is 0 either way)
-            impossible = joint.sum(axis=1) <= 0
+            impossible = p <= 0
             if impossible.any():
-                choice[impossible] = int(np.argmax(local @ predicted))
+                choice[impossible] = int(np.argmax(values[n_obs]))
             value = rewards[a] + self.gamma * float(values[np.arange(n_obs), choice].sum())
             if value > best_value:
                 best_value, best_action, best_choice = value, a, choice
@@ -330,7 +330,7 @@ class PointBasedSolver:
         scores = np.full(len(p), -np.inf)
         possible = p > 0
         ups = self._upper_local(nz, post[possible])
-        lows = (post[possible] @ self.alphas[:, nz].T).max(axis=1)
+        lows = self._products(nz, post[possible]).max(axis=1)
         scores[possible] = p[possible] * (ups - lows - target)
         o = int(np.argmax(scores))
         keep = post[o] > 0
@@ -481,6 +481,21 @@ class _PointGroup:
                           np.array([sup[-1] for sup in self.supports]),
                           np.array(self.excess))
         return self._flat
+
+
+@numba.njit(cache=True)
+def _alpha_products(buffer, count, columns, rows):  # pragma: no cover (compiled)
+    """(R, count) = rows (R, m) @ buffer[:count, columns].T without gathering the columns:
+    the buffer is column-major, so each column's alphas are contiguous."""
+    out = np.zeros((rows.shape[0], count))
+    for j in range(len(columns)):
+        c = columns[j]
+        for r in range(rows.shape[0]):
+            w = rows[r, j]
+            if w != 0.0:
+                for k in range(count):
+                    out[r, k] += w * buffer[k, c]
+    return out
 
 
 @numba.njit(cache=True)
