@@ -21,6 +21,7 @@ contour pieces outside the trust region) are dropped from the model.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -109,8 +110,6 @@ def build_hand_pomdp(world: PlanarWorld, spec: HandProblemSpec = HandProblemSpec
     Cost: ``samples_per_state`` x (states) pushes of one action each, per action; with the
     defaults about 300k pushes of 2-3 cm per action.
     """
-    import time
-
     start = time.perf_counter()
     disc = HandDiscretization(world, spec)
     n = spec.samples_per_state
