@@ -25,10 +25,16 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numba
 import numpy as np
 import scipy.sparse as sp
 
+from planning.point_based_kernels import (
+    alpha_products,
+    best_backup,
+    expand,
+    new_alpha,
+    sawtooth,
+)
 from planning.pomdp import TabularPOMDP
 from planning.qmdp import solve_mdp
 
@@ -123,9 +129,18 @@ class PointBasedSolver:
         self.gap_fraction = gap_fraction
         self.max_depth = max_depth
         self.prune_every = prune_every
-        self._T_csr = [(t.indptr, t.indices, t.data) for t in
-                       (sp.csr_matrix(t, dtype=float) for t in pomdp.T)]
+        # every T[a] in one CSR structure: row s of action a is entries indptr[a, s]:[a, s + 1]
+        csr = [sp.csr_matrix(t, dtype=float) for t in pomdp.T]
+        offsets = np.cumsum([0] + [t.nnz for t in csr[:-1]])
+        self._T_indptr = np.stack([t.indptr.astype(np.int64) + o
+                                   for t, o in zip(csr, offsets, strict=True)])
+        self._T_indices = np.concatenate([t.indices for t in csr]).astype(np.int64)
+        self._T_data = np.concatenate([t.data for t in csr])
+        self._Z = np.ascontiguousarray(pomdp.Z, dtype=float)
+        self._R = np.ascontiguousarray(pomdp.R, dtype=float)
         self._scratch = np.zeros(S)  # a dense belief, zero between uses (upper-bound points)
+        self._accumulator = np.zeros(S)  # the same for the predictions of _expand
+        self._touched = np.zeros(S, dtype=np.bool_)
         self.TZ = [[sp.csr_matrix(pomdp.T[a].multiply(pomdp.Z[a, :, o][None, :]))
                     for o in range(n_obs)] for a in range(A)]
         blind, blind_actions = self._blind_policies()
@@ -211,7 +226,7 @@ class PointBasedSolver:
 
     def _products(self, columns: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """(R, K) products of (R, m) local beliefs on ``columns`` (m,) with every alpha."""
-        return _alpha_products(self._alpha_buffer, self._alpha_count, columns,
+        return alpha_products(self._alpha_buffer, self._alpha_count, columns,
                                np.ascontiguousarray(rows))
 
     def _upper_local(self, support: np.ndarray, beliefs: np.ndarray) -> np.ndarray:
@@ -219,36 +234,20 @@ class PointBasedSolver:
         return beliefs @ self.corner[support] + self.points.correction(support, beliefs,
                                                                        self._scratch)
 
-    def _expand(self, support: np.ndarray, probs: np.ndarray) -> list[tuple]:
-        """Per action: (support of the prediction (m,), prediction (m,), p(o | b, a) (O,),
-        posteriors (O, m)). The prediction gathers only the rows of T in the support."""
-        n_obs = self.m.shape[2]
-        out = []
-        for a in range(self.m.shape[1]):
-            indptr, indices, data = self._T_csr[a]
-            starts, counts = indptr[support], indptr[support + 1] - indptr[support]
-            first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-            entry = np.repeat(starts - first, counts) + np.arange(counts.sum())
-            cols = indices[entry]
-            nz, inverse = np.unique(cols, return_inverse=True)
-            predicted = np.bincount(inverse, weights=data[entry] * np.repeat(probs, counts),
-                                    minlength=len(nz))
-            joint = predicted[None, :] * self.m.Z[a, nz, :].T  # (O, m)
-            p = joint.sum(axis=1)
-            post = np.zeros((n_obs, len(nz)))
-            possible = p > 0
-            post[possible] = joint[possible] / p[possible, None]
-            out.append((nz, predicted, p, post))
-        return out
+    def _expand(self, support: np.ndarray, probs: np.ndarray) -> _Expansion:
+        """Predictions and posteriors for every action (see :class:`_Expansion`); they
+        gather only the rows of T in the support."""
+        return _Expansion(*expand(self._T_indptr, self._T_indices, self._T_data, self._Z,
+                                  support, probs, self._accumulator, self._touched))
 
     def _q_upper(self, support, probs, kids,
                  actions: range | list[int] | None = None) -> np.ndarray:
         """(A,) upper-bound Q(b, a); only for ``actions`` (default: all; the others are
         left at +inf)."""
-        q = np.full(len(kids), np.inf)
+        q = np.full(kids.actions, np.inf)
         rewards = probs @ self.m.R[support]
-        for a in range(len(kids)) if actions is None else actions:
-            nz, _, p, post = kids[a]
+        for a in range(kids.actions) if actions is None else actions:
+            nz, _, p, post = kids.action(a)
             possible = p > 0
             ups = self._upper_local(nz, post[possible]) if len(nz) else np.zeros(0)
             q[a] = rewards[a] + self.gamma * p[possible] @ ups
@@ -260,25 +259,13 @@ class PointBasedSolver:
         the best action's alpha-vector is built over all states."""
         S, A, n_obs = self.m.shape
         rewards = probs @ self.m.R[support]
-        best_value, best_action, best_choice = -np.inf, -1, None
-        for a, (nz, predicted, p, post) in enumerate(kids):
-            joint = post * p[:, None]  # (O, m): p(o, s' | b, a)
-            values = self._products(nz, np.vstack([joint, predicted]))  # (O + 1, K)
-            choice = np.argmax(values[:n_obs], axis=1)
-            # an impossible observation still needs a branch in the plan: it takes the
-            # best alpha at the prediction (its value there is 0 either way)
-            impossible = p <= 0
-            if impossible.any():
-                choice[impossible] = int(np.argmax(values[n_obs]))
-            value = rewards[a] + self.gamma * float(values[np.arange(n_obs), choice].sum())
-            if value > best_value:
-                best_value, best_action, best_choice = value, a, choice
+        best_value, best_action, best_choice = best_backup(
+            self._alpha_buffer, self._alpha_count, kids.offsets, kids.states,
+            kids.predicted, kids.p, kids.post, rewards, self.gamma)
         if best_value <= self._lower_local(support, probs) + 1e-9:
             return
-        g = np.zeros(S)
-        for o in range(n_obs):
-            g += self.m.Z[best_action, :, o] * self.alphas[best_choice[o]]
-        alpha = self.m.R[:, best_action] + self.gamma * (self.m.T[best_action] @ g)
+        alpha = new_alpha(self._alpha_buffer, best_choice, best_action, self._T_indptr,
+                          self._T_indices, self._T_data, self._Z, self._R, self.gamma)
         self._add_alpha(alpha, best_action)
         self.report.backups += 1
         self._new_alphas += 1
@@ -325,7 +312,7 @@ class PointBasedSolver:
         kids = self._expand(support, probs)
         q = self._q_upper(support, probs, kids)
         a = int(np.argmax(q))
-        nz, _, p, post = kids[a]
+        nz, _, p, post = kids.action(a)
         target = epsilon * self.gamma ** (-(depth + 1))
         scores = np.full(len(p), -np.inf)
         possible = p > 0
@@ -450,7 +437,7 @@ class _UpperPoints:
             for k, belief in enumerate(beliefs):
                 scratch[support] = belief
                 for points, probs, starts, hi, excess in groups:
-                    out[k] = min(out[k], _sawtooth(points, probs, starts, hi, excess, end,
+                    out[k] = min(out[k], sawtooth(points, probs, starts, hi, excess, end,
                                                    scratch))
         finally:
             scratch[support] = 0.0
@@ -483,39 +470,26 @@ class _PointGroup:
         return self._flat
 
 
-@numba.njit(cache=True)
-def _alpha_products(buffer, count, columns, rows):  # pragma: no cover (compiled)
-    """(R, count) = rows (R, m) @ buffer[:count, columns].T without gathering the columns:
-    the buffer is column-major, so each column's alphas are contiguous."""
-    out = np.zeros((rows.shape[0], count))
-    for j in range(len(columns)):
-        c = columns[j]
-        for r in range(rows.shape[0]):
-            w = rows[r, j]
-            if w != 0.0:
-                for k in range(count):
-                    out[r, k] += w * buffer[k, c]
-    return out
+@dataclass(frozen=True)
+class _Expansion:
+    """A belief's children, flat: action a owns entries ``offsets[a]:offsets[a + 1]`` of
+    ``states`` (the prediction's support) and ``predicted`` (its probabilities), and those
+    columns of ``post`` (O, total), the posteriors; ``p`` (A, O) are p(o | b, a)."""
 
+    offsets: np.ndarray
+    states: np.ndarray
+    predicted: np.ndarray
+    p: np.ndarray
+    post: np.ndarray
 
-@numba.njit(cache=True)
-def _sawtooth(points, probs, starts, hi, excess, end, belief):  # pragma: no cover (compiled)
-    """min(0, min_i excess_i min_j belief[points_ij] / probs_ij) over the points of one
-    group whose largest state is at most ``end``; a ratio stops at its first zero."""
-    best = 0.0
-    for i in range(len(excess)):
-        if hi[i] > end:
-            continue
-        ratio = np.inf
-        for j in range(starts[i], starts[i + 1]):
-            r = belief[points[j]] / probs[j]
-            if r < ratio:
-                ratio = r
-                if ratio == 0.0:
-                    break
-        if ratio * excess[i] < best:
-            best = ratio * excess[i]
-    return best
+    @property
+    def actions(self) -> int:
+        return len(self.offsets) - 1
+
+    def action(self, a: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(support (m,), prediction (m,), p(o | b, a) (O,), posteriors (O, m))."""
+        lo, hi = self.offsets[a], self.offsets[a + 1]
+        return self.states[lo:hi], self.predicted[lo:hi], self.p[a], self.post[:, lo:hi]
 
 
 def _local(belief: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
