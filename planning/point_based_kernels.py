@@ -103,21 +103,23 @@ def best_backup(buffer, count, offsets, states, predicted, p, post, rewards,
     best_choice = np.zeros(n_obs, dtype=np.int64)
     for a in range(n_actions):
         lo, hi = offsets[a], offsets[a + 1]
-        rows = np.empty((n_obs + 1, hi - lo))
+        rows = np.empty((n_obs, hi - lo))
         for o in range(n_obs):
             for j in range(lo, hi):
                 rows[o, j - lo] = post[o, j] * p[a, o]
-        for j in range(lo, hi):
-            rows[n_obs, j - lo] = predicted[j]
         values = alpha_products(buffer, count, states[lo:hi], rows)
-        fallback = np.argmax(values[n_obs])
         choice = np.empty(n_obs, dtype=np.int64)
         total = rewards[a]
+        fallback = -1
         for o in range(n_obs):
             if p[a, o] > 0.0:
                 choice[o] = np.argmax(values[o])
                 total += gamma * values[o, choice[o]]
             else:
+                if fallback < 0:  # only now is the prediction's own product needed
+                    at_prediction = alpha_products(buffer, count, states[lo:hi],
+                                                   predicted[lo:hi].reshape(1, hi - lo))
+                    fallback = np.argmax(at_prediction[0])
                 choice[o] = fallback
         if total > best_value:
             best_value, best_action, best_choice = total, a, choice
