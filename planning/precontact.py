@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from models.planar.observation import observation_keys
 from planning.hand_pomdp import HandPOMDP, goal_region
 from planning.point_based import AlphaVectorPolicy
 
@@ -132,32 +133,31 @@ class PreContactPlanner:
         return -self.gamma ** v.t * v.p_nc * float(v.weights @ self.heuristic_values(v.poses))
 
     def _children(self, v: _Vertex, rng: np.random.Generator):
+        """The successor of ``v`` under each action, with its edge cost (eq. 6.2)."""
         world, model = self.model.world, self.model
+        e = world.sensing.error_rate
         reward = -float(v.weights @ ~model.in_goal(v.poses))
         n_obs = 2 ** world.sensor_count
         for a, action in enumerate(self.actions):
             nxt = world.sample_step(v.poses, action, rng=rng)
             contact, touching = world.sensing.readings(nxt)
-            key = (touching.astype(np.int64) << np.arange(world.sensor_count)).sum(axis=1)
-            # p(o | x') for every contact observation o != 0, weighted: (O - 1, N)
+            key = observation_keys(touching)
+            # weighted p(o | x') for every contact observation o != 0: (O - 1, N)
             joint = np.where(contact[None, :], self.wrong, 0.0) * np.ones((n_obs - 1, 1))
             rows = key[contact] - 1
             hit = rows >= 0
-            joint[rows[hit], np.flatnonzero(contact)[hit]] = 1.0 - world.sensing.error_rate
+            joint[rows[hit], np.flatnonzero(contact)[hit]] = 1.0 - e
             joint *= v.weights[None, :]
-            ids = model.index(nxt)
-            values = joint @ self.vectors[:, ids].T  # (O - 1, K)
+            values = joint @ self.vectors[:, model.index(nxt)].T  # (O - 1, K)
             post = float(values.max(axis=1).sum()) if len(values) else 0.0
             edge = -self.gamma ** v.t * v.p_nc * (reward + self.gamma * post)
-            e = world.sensing.error_rate
             w_nc = v.weights * np.where(contact, np.where(key == 0, 1.0 - e, self.wrong), 1.0)
             total = float(w_nc.sum())
-            step = np.asarray(np.round(action[:2] / model.spec.step_m), dtype=int)
-            child = _Vertex(nxt, w_nc / total if total > 0 else v.weights,
-                            v.p_nc * total, v.t + 1, v.cost + edge,
-                            (v.displacement[0] + int(step[0]), v.displacement[1] + int(step[1])),
-                            v.actions + (a,))
-            yield child
+            step = np.round(action[:2] / model.spec.step_m).astype(int)
+            yield _Vertex(nxt, w_nc / total if total > 0 else v.weights, v.p_nc * total,
+                          v.t + 1, v.cost + edge,
+                          (v.displacement[0] + int(step[0]), v.displacement[1] + int(step[1])),
+                          v.actions + (a,))
 
     def plan(self, poses: np.ndarray, weights: np.ndarray | None = None, *,
              rng: np.random.Generator) -> PreContactPlan:
