@@ -31,6 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 from estimation.manifolds import AnalyticManifold
+from experiments.timing import median_ms
 from models.planar.world import PlanarWorld
 from planning.cassandra import write_pomdp
 from planning.hand_beliefs import (
@@ -90,9 +91,11 @@ class HandplanSettings:
 
 @dataclass
 class SolvedProblem:
-    """A model with both post-contact policies and what they cost."""
+    """A model with both post-contact policies, the discrete belief points they were
+    solved for ((K, S)), and what they cost."""
 
     model: HandPOMDP
+    initial: np.ndarray
     policies: dict[str, AlphaVectorPolicy]
     timings: dict[str, float]
     bounds: list[tuple[float, float, float]]
@@ -133,14 +136,8 @@ def solve_problem(settings: HandplanSettings, sensors: str,
     timings = {"build_s": model.build_seconds, "qmdp_solve_s": qmdp_s,
                "pomdp_solve_s": solve_s}
     for name, policy in policies.items():
-        b = initial[0]
-        runs = []
-        for _ in range(20):
-            t0 = time.perf_counter()
-            policy.act(b)
-            runs.append(time.perf_counter() - t0)
-        timings[f"{name.lower()}_act_ms"] = 1e3 * float(np.median(runs))
-    return SolvedProblem(model, policies, timings, list(solver.report.history))
+        timings[f"{name.lower()}_act_ms"] = median_ms(lambda p=policy: p.act(initial[0]), 20)
+    return SolvedProblem(model, initial, policies, timings, list(solver.report.history))
 
 
 def discretise(model: HandPOMDP, beliefs: list[GaussianBelief],
@@ -151,13 +148,13 @@ def discretise(model: HandPOMDP, beliefs: list[GaussianBelief],
                      for i, b in enumerate(beliefs)])
 
 
-def evaluate_discrete(problem: SolvedProblem, initial: np.ndarray,
-                      settings: HandplanSettings) -> dict[str, dict]:
+def evaluate_discrete(problem: SolvedProblem, settings: HandplanSettings) -> dict[str, dict]:
     """H1: discounted value of each policy on the discrete model."""
     out = {}
     for name, policy in problem.policies.items():
-        returns = simulate_returns(problem.model.pomdp, policy, initial, 2 * settings.trials,
-                                   settings.horizon, rng=_rng(settings, 11, _stream(name)))
+        returns = simulate_returns(problem.model.pomdp, policy, problem.initial,
+                                   2 * settings.trials, settings.horizon,
+                                   rng=_rng(settings, 11, _stream(name)))
         out[name] = {"discounted_value": float(returns.mean()),
                      "discounted_value_ci95": _half_width(returns),
                      "episodes": len(returns)}
@@ -168,13 +165,14 @@ def evaluate_continuous(problem: SolvedProblem, beliefs: list[GaussianBelief],
                         settings: HandplanSettings, *, precontact: bool,
                         label: str) -> dict[str, dict]:
     """H2 (and H3, H4 with ``precontact``): each policy on the continuous planar model.
+    Without ``precontact``, ``beliefs`` are the problem's own belief points and each policy
+    starts from their discrete versions (``problem.initial``).
 
     All trials advance together: the true objects are pushed in one batch per action, and
     each trial's policy updates its own belief from its own reading.
     """
     model, world = problem.model, problem.model.world
     horizon = settings.horizon + (15 if precontact else 0)
-    initial = None if precontact else discretise(model, beliefs, settings)
     out = {}
     for name, vectors in problem.policies.items():
         planner = PreContactPlanner(model, vectors, settings.precontact) if precontact else None
@@ -195,7 +193,7 @@ def evaluate_continuous(problem: SolvedProblem, beliefs: list[GaussianBelief],
                     plans[k] = planner.plan(particles, rng=_rng(settings, 17, k))
                 policy.reset(particles, plan=plans[k], rng=rngs[j])
             else:
-                policy.reset(initial[k], rng=rngs[j])
+                policy.reset(problem.initial[k], rng=rngs[j])
             policies.append(policy)
         success = np.zeros((horizon + 1, trials), dtype=bool)
         success[0] = model.in_goal(states)
@@ -277,8 +275,7 @@ def run_study(part: str, settings: HandplanSettings, out: Path) -> dict:
         p = problem("fingertips")
         write_pomdp(p.model.pomdp, out / "hand_fingertips.pomdp")
         plot_problem(p.model, near, far, out / "problem.png")
-        initial = discretise(p.model, near, settings)
-        summary["post_contact_discrete"] = evaluate_discrete(p, initial, settings)
+        summary["post_contact_discrete"] = evaluate_discrete(p, settings)
         summary["post_contact"] = evaluate_continuous(p, near, settings, precontact=False,
                                                       label="post-contact")
         checkpoint()
@@ -291,10 +288,9 @@ def run_study(part: str, settings: HandplanSettings, out: Path) -> dict:
         summary["coverage"] = {}
         for sensors in ("fingertips", "links"):
             p = problem(sensors)
-            initial = discretise(p.model, near, settings)
             summary["coverage"][sensors] = {
                 "observations": feasible_observations(sensors, settings),
-                "post_contact_discrete": evaluate_discrete(p, initial, settings),
+                "post_contact_discrete": evaluate_discrete(p, settings),
                 "post_contact": evaluate_continuous(p, near, settings, precontact=False,
                                                     label=f"coverage {sensors}"),
                 "full": evaluate_continuous(p, far, settings, precontact=True,

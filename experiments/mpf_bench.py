@@ -9,14 +9,12 @@ reports 162 ms per update, 80 % of it in the physics model.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
-from tqdm import tqdm
 
 from estimation.belief import ParticleBelief
 from estimation.manifolds import AnalyticManifold
 from estimation.particle_filters import ConventionalParticleFilter, ManifoldParticleFilter
+from experiments.timing import median_ms
 from models.planar.world import PlanarWorld
 
 ACTION = np.array([0.005, 0.0, 0.0])
@@ -26,17 +24,6 @@ def _contact_belief(world: PlanarWorld, n: int, rng: np.random.Generator) -> np.
     """n states of the box resting against the front of the hand."""
     states = world.sample_gaussian([0.16, 0.0, 0.0], [0.01, 0.02, 0.3], n, rng=rng)
     return world.sample_step(states, np.array([0.05, 0.0, 0.0]), rng=rng)
-
-
-def _median_ms(fn, repeats: int, label: str) -> float:
-    """Median wall time (ms) of ``repeats`` calls, after one untimed call (JIT compile)."""
-    fn()
-    times = []
-    for _ in tqdm(range(repeats), desc=label, leave=False):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return float(np.median(times) * 1e3)
 
 
 def run_mpf_bench(repeats: int = 30, seed: int = 0) -> dict:
@@ -55,20 +42,20 @@ def run_mpf_bench(repeats: int = 30, seed: int = 0) -> dict:
             observation[0] = True
         reps = repeats if n <= 1000 else max(3, repeats // 6)
         for name, flt in (("cpf", cpf), ("mpf", mpf)):
-            report[f"{name}_update_ms{suffix}"] = _median_ms(
+            report[f"{name}_update_ms{suffix}"] = median_ms(
                 lambda flt=flt, b=belief, o=observation: flt.update(b, ACTION, o, rng=rng), reps,
                 f"{name} n={n}")
     # Baseline in the same run: the numpy reference backend (same algorithm, no kernels).
     reference = PlanarWorld.load("box", "medium", backend="numpy")
     states = _contact_belief(world, 100, rng)
     observation = world.sensing.true_contacts(states[:1])[0]
-    report["cpf_update_ms_numpy_backend"] = _median_ms(
+    report["cpf_update_ms_numpy_backend"] = median_ms(
         lambda: ConventionalParticleFilter(reference).update(
             ParticleBelief.uniform(states), ACTION, observation, rng=rng),
         max(3, repeats // 3), "cpf numpy")
     states = _contact_belief(world, 2000, rng)
     u = rng.random((len(states), world.uniforms_per_step(ACTION)))
-    step_ms = _median_ms(lambda: world.step(states, ACTION, u), max(3, repeats // 3),
+    step_ms = median_ms(lambda: world.step(states, ACTION, u), max(3, repeats // 3),
                          "transition")
     report["transition_particle_mm_per_s"] = len(states) * ACTION[0] * 1000 / (step_ms / 1e3)
     report["settings"] = {"object": "box", "sensors": "medium", "travel_per_update_m": 0.005,

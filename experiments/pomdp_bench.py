@@ -18,10 +18,12 @@ also given as a ratio to QMDP's, measured in the same run.
 
 from __future__ import annotations
 
+import itertools
 import time
 
 import numpy as np
 
+from experiments.timing import median_ms
 from models.planar.world import PlanarWorld
 from planning.benchmarks import rock_sample, tag
 from planning.hand_beliefs import belief_points
@@ -95,21 +97,12 @@ def hand_problem_bench(*, quick: bool = False, seed: int = 0, repeats: int = 200
     policy = solver.solve(budget, initial_beliefs=beliefs)
     solve_s = time.perf_counter() - start
     policies = {"qmdp": qmdp_vectors(Q, model.pomdp.actions), "pomdp": policy}
-    act_ms = {}
-    for name, p in policies.items():
-        runs = []
-        for i in range(repeats):
-            b = beliefs[i % len(beliefs)]
-            t0 = time.perf_counter()
-            p.act(b)
-            runs.append(time.perf_counter() - t0)
-        act_ms[name] = 1e3 * float(np.median(runs))
-    runs = []
-    for i in range(repeats):
-        b = beliefs[i % len(beliefs)]
-        t0 = time.perf_counter()
-        belief_update(model.pomdp, b, i % 5, 0)
-        runs.append(time.perf_counter() - t0)
+    cycle = itertools.cycle(beliefs)
+    act_ms = {name: median_ms(lambda p=p: p.act(next(cycle)), repeats)
+              for name, p in policies.items()}
+    actions = itertools.cycle(range(len(model.pomdp.actions)))
+    update_ms = median_ms(lambda: belief_update(model.pomdp, next(cycle), next(actions), 0),
+                          repeats)
     lower, upper = solver.report.history[-1][1:]
     out = {
         "states": len(model.pomdp.states), "free_states": model.free_count,
@@ -118,7 +111,7 @@ def hand_problem_bench(*, quick: bool = False, seed: int = 0, repeats: int = 200
         "upper_bound": upper, "alpha_vectors": len(policy.alphas),
         "qmdp_act_ms": act_ms["qmdp"], "pomdp_act_ms": act_ms["pomdp"],
         "pomdp_to_qmdp_act_ratio": act_ms["pomdp"] / act_ms["qmdp"],
-        "belief_update_ms": 1e3 * float(np.median(runs)),
+        "belief_update_ms": update_ms,
     }
     print(f"hand: {out['states']} states ({out['free_states']} free, {out['contact_states']} "
           f"contact); built in {out['build_s']:.1f} s; QMDP solved in {qmdp_s:.2f} s; "

@@ -160,14 +160,20 @@ class HandDiscretization:
         self.shape_xy = (nx, ny)
         self.contours = []
         for k in range(self.theta_bins):
-            obstacle = c_obstacle(self.world.hand.parts, outline, self.bin_centre(k))
-            polygons = getattr(obstacle, "geoms", [obstacle])
-            outer = max(polygons, key=lambda p: p.area).exterior  # holes are unreachable
+            outer = self._contour(self.bin_centre(k))
             length = float(outer.length)
             self.contours.append(_Contour(outer, length,
                                           max(1, int(np.ceil(length / spec.contact_cell_m)))))
         counts = np.array([c.count for c in self.contours])
         self.contact_offsets = np.concatenate([[0], np.cumsum(counts)])
+
+    def _contour(self, theta: float) -> shapely.LinearRing:
+        """The C-obstacle's outer boundary at orientation ``theta`` (holes are pockets no
+        object reaches from outside)."""
+        outline = self.world.shape.vertices[0][self.world.shape.valid[0]]
+        obstacle = c_obstacle(self.world.hand.parts, outline, theta)
+        polygons = getattr(obstacle, "geoms", [obstacle])
+        return max(polygons, key=lambda p: p.area).exterior
 
     # -- sizes
     @property
@@ -291,16 +297,13 @@ class HandDiscretization:
         orientations per bin (with jitter inside the level's slice), then classified by
         :meth:`index`; this is uniform over the states that map to each piece.
         """
-        outline = self.world.shape.vertices[0][self.world.shape.valid[0]]
         width = self.period_rad / self.theta_bins
         poses = []
         for b, contour in enumerate(self.contours):
             n_level = int(np.ceil(contour.count * per_state * oversample / levels_per_bin))
             for j in range(levels_per_bin):
                 theta = (b + (j + 0.5) / levels_per_bin) * width
-                obstacle = c_obstacle(self.world.hand.parts, outline, theta)
-                polygons = getattr(obstacle, "geoms", [obstacle])
-                ring = max(polygons, key=lambda p: p.area).exterior
+                ring = self._contour(theta)
                 arc = rng.random(n_level) * ring.length
                 xy = shapely.get_coordinates(shapely.line_interpolate_point(ring, arc))
                 jitter = (rng.random(n_level) - 0.5) * width / levels_per_bin

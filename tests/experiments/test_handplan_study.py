@@ -64,3 +64,10 @@ def test_cli_rejects_bad_arguments(capsys):
     assert "--trials" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["experiment", "handplan", "--part", "nope", "--out", "x"])
+
+
+def test_settings_and_parts_reject_bad_values(tmp_path):
+    with pytest.raises(ValueError, match="trials"):
+        HandplanSettings(trials=0)
+    with pytest.raises(ValueError, match="part must be one of"):
+        run_study("everything", TINY, tmp_path)

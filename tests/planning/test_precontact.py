@@ -102,3 +102,10 @@ def test_act_on_a_new_belief_needs_a_generator(small_hand_model, qmdp):
     with pytest.raises(ValueError, match="rng"):
         policy.act(b)
     assert policy.act(b, rng=np.random.default_rng(0)) == qmdp.act(b)
+
+
+def test_settings_reject_bad_values():
+    with pytest.raises(ValueError, match="trust_mass_stop"):
+        PreContactSettings(trust_mass_stop=1.5)
+    with pytest.raises(ValueError, match="inflation"):
+        PreContactSettings(inflation=0.5)
