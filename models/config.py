@@ -123,6 +123,10 @@ class Fields:
         """A :class:`ConfigError` about field ``name`` of this mapping."""
         return ConfigError(self.source, self._path(name), message)
 
+    def keys(self) -> list[str]:
+        """The mapping's keys (for mappings whose keys are data, such as named tables)."""
+        return [str(k) for k in self._data]
+
     def has(self, name: str) -> bool:
         return name in self._data
 
