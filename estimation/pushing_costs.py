@@ -23,60 +23,44 @@ order), so they plug into ``gtsam.CustomFactor`` unchanged.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from models.pose import wrap_angle
+from estimation import pushing_kernels as kernels
 
 
-def _rotation(theta: float) -> np.ndarray:
-    c, s = np.cos(theta), np.sin(theta)
-    return np.array([[c, -s], [s, c]])
+class Outline:
+    """A convex outline with its edges precomputed (the contact cost queries it at every
+    linearisation).
+
+    Args:
+        polygon: (V, 2) convex, counter-clockwise vertices (m).
+    """
+
+    def __init__(self, polygon: np.ndarray):
+        self.vertices = np.ascontiguousarray(polygon, dtype=float)
+        self.edges = np.roll(self.vertices, -1, axis=0) - self.vertices
+        self.length2 = np.einsum("ij,ij->i", self.edges, self.edges)
 
 
-def _world_jacobian(theta: float) -> np.ndarray:
-    """(3, 3) d(x, y, theta) / d xi: the world-frame change of a local perturbation."""
-    J = np.eye(3)
-    J[:2, :2] = _rotation(theta)
-    return J
-
-
-def closest_boundary_point(polygon: np.ndarray, q: np.ndarray):
+def closest_boundary_point(outline: Outline | np.ndarray, q: np.ndarray):
     """The outline's closest point to ``q`` and the signed distance, with derivatives.
 
     Args:
-        polygon: (V, 2) convex, counter-clockwise outline (m).
-        q: (2,) a point in the polygon's frame (m).
+        outline: an :class:`Outline` (or its (V, 2) convex, counter-clockwise polygon).
+        q: (2,) a point in the outline's frame (m).
 
     Returns:
         (A (2,), dA/dq (2, 2), signed distance (negative inside), d sd / dq (2,)).
         On an edge's interior dA/dq projects onto the edge; at a vertex it is zero.
     """
-    a = polygon
-    e = np.roll(polygon, -1, axis=0) - a
-    length2 = np.einsum("ij,ij->i", e, e)
-    t = np.clip(np.einsum("ij,ij->i", q - a, e) / length2, 0.0, 1.0)
-    candidates = a + t[:, None] * e
-    gaps = q - candidates
-    d2 = np.einsum("ij,ij->i", gaps, gaps)
-    k = int(np.argmin(d2))
-    A = candidates[k]
-    unit = e[k] / np.sqrt(length2[k])
-    on_edge = 0.0 < t[k] < 1.0
-    dA = np.outer(unit, unit) if on_edge else np.zeros((2, 2))
-    cross = e[:, 0] * (q[1] - a[:, 1]) - e[:, 1] * (q[0] - a[:, 0])
-    inside = bool(np.all(cross > 0))
-    distance = float(np.sqrt(d2[k]))
-    outward = np.array([unit[1], -unit[0]])
-    direction = gaps[k] / distance if distance > 1e-12 else outward
-    if inside:
-        return A, dA, -distance, -direction
-    return A, dA, distance, direction
-
-
-def _local_point_jacobian(q: np.ndarray) -> np.ndarray:
-    """(2, 3) d q / d xi for ``q = R(theta)^T (point - p)``, a fixed world point seen
-    from the pose."""
-    return np.array([[-1.0, 0.0, q[1]], [0.0, -1.0, -q[0]]])
+    if not isinstance(outline, Outline):
+        outline = Outline(outline)
+    ax, ay, on_edge, ux, uy, sd, gx, gy = kernels.closest_point(
+        outline.vertices, outline.edges, outline.length2, float(q[0]), float(q[1]))
+    dA = np.outer([ux, uy], [ux, uy]) if on_edge else np.zeros((2, 2))
+    return np.array([ax, ay]), dA, sd, np.array([gx, gy])
 
 
 def contact_point(rod: np.ndarray, force: np.ndarray, radius: float) -> np.ndarray:
@@ -86,27 +70,26 @@ def contact_point(rod: np.ndarray, force: np.ndarray, radius: float) -> np.ndarr
 
 
 def contact_residual(pose: np.ndarray, rod: np.ndarray, force: np.ndarray, radius: float,
-                     polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                     polygon: Outline | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Seed 003 eq. 3 for one rod in contact.
+
+    With ``q = R(theta)^T (point - p)`` a world point seen from the pose, ``dq/dxi =
+    [[-1, 0, q_y], [0, -1, -q_x]]``; the residual's rows are ``grad sd(q_rod) dq_rod/dxi``
+    and ``(I - dA/dq) dq_B/dxi``. Compiled (:mod:`estimation.pushing_kernels`).
 
     Args:
         pose: (3,) object pose. rod: (2,) rod centre (m, world). force: (2,) the rod's
-        force on the object (N, world). radius: rod radius (m). polygon: (V, 2) outline.
+        force on the object (N, world). radius: rod radius (m). polygon: the outline (an
+        :class:`Outline` or its (V, 2) vertices).
 
     Returns:
         (residual (3,) m, Jacobian (3, 3) with respect to the local perturbation).
     """
-    R = _rotation(pose[2])
-    p = pose[:2]
-    q_rod = R.T @ (rod - p)
-    _, _, sd, dsd = closest_boundary_point(polygon, q_rod)
-    q_b = R.T @ (contact_point(rod, force, radius) - p)
-    A, dA, _, _ = closest_boundary_point(polygon, q_b)
-    residual = np.array([sd - radius, *(q_b - A)])
-    J = np.empty((3, 3))
-    J[0] = dsd @ _local_point_jacobian(q_rod)
-    J[1:] = (np.eye(2) - dA) @ _local_point_jacobian(q_b)
-    return residual, J
+    if not isinstance(polygon, Outline):
+        polygon = Outline(polygon)
+    return kernels.contact(np.asarray(pose, dtype=float), np.asarray(rod, dtype=float),
+                           np.asarray(force, dtype=float), float(radius), polygon.vertices,
+                           polygon.edges, polygon.length2)
 
 
 def motion_terms(rods: np.ndarray, forces: np.ndarray, radius: float
@@ -135,43 +118,41 @@ def motion_residual(previous: np.ndarray, current: np.ndarray, forces: np.ndarra
         c: the limit surface's ratio m_max / f_max (m).
 
     Returns:
-        (residual (2,) N m^2 / s-like units, d/d xi_previous (2, 3), d/d xi_current (2, 3)).
+        (residual (2,) in N m^2, d/d xi_previous (2, 3), d/d xi_current (2, 3)). With
+        ``u = dp m - c^2 F w``: ``du/dp_prev = -m I + dp [-F_y, F_x]``, ``du/dp = m I``,
+        ``du/dtheta_prev = c^2 F = -du/dtheta``, and ``d(R^T)/dtheta u = -[[0, -1], [1, 0]] r``.
+        Compiled (:mod:`estimation.pushing_kernels`).
     """
-    p1, p2 = previous[:2], current[:2]
-    R1, R2 = _rotation(previous[2]), _rotation(current[2])
-    F = forces.sum(axis=0)
-    arms = points - p1
-    m = float(np.sum(arms[:, 0] * forces[:, 1] - arms[:, 1] * forces[:, 0]))
-    dp = p2 - p1
-    w = float(wrap_angle(current[2] - previous[2]))
-    c2 = c * c
-    u = dp * m - c2 * F * w
-    r = R1.T @ u
-    du_dp1 = -m * np.eye(2) + np.outer(dp, [-F[1], F[0]])
-    J1 = np.empty((2, 3))
-    J1[:, :2] = R1.T @ du_dp1 @ R1
-    J1[:, 2] = R1.T @ (c2 * F) + np.array([r[1], -r[0]])  # d(R1^T)/dtheta u = -J r
-    J2 = np.empty((2, 3))
-    J2[:, :2] = m * (R1.T @ R2)
-    J2[:, 2] = -(R1.T @ (c2 * F))
-    return r, J1, J2
+    return kernels.motion(np.asarray(previous, dtype=float), np.asarray(current, dtype=float),
+                          np.ascontiguousarray(forces, dtype=float),
+                          np.ascontiguousarray(points, dtype=float), float(c))
+
+
+def _wrap(angle: float) -> float:
+    """Scalar :func:`models.pose.wrap_angle` (the costs run inside solver callbacks, where
+    numpy's per-call overhead would dominate)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def vision_residual(pose: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Seed 003 eq. 4: (3,) world-frame ``pose - measured`` (angle wrapped) and its (3, 3)
     Jacobian."""
-    r = pose - measured
-    r[2] = float(wrap_angle(r[2]))
-    return r, _world_jacobian(pose[2])
+    x, y, theta = pose
+    c, s = math.cos(theta), math.sin(theta)
+    r = np.array([x - measured[0], y - measured[1], _wrap(theta - measured[2])])
+    return r, np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def stationary_residual(previous: np.ndarray, current: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Seed 003 eq. 4: (3,) world-frame ``current - previous`` and its Jacobians (3, 3)
     with respect to ``previous`` and ``current``."""
-    r = current - previous
-    r[2] = float(wrap_angle(r[2]))
-    return r, -_world_jacobian(previous[2]), _world_jacobian(current[2])
+    c1, s1 = math.cos(previous[2]), math.sin(previous[2])
+    c2, s2 = math.cos(current[2]), math.sin(current[2])
+    r = np.array([current[0] - previous[0], current[1] - previous[1],
+                  _wrap(current[2] - previous[2])])
+    return (r, np.array([[-c1, s1, 0.0], [-s1, -c1, 0.0], [0.0, 0.0, -1.0]]),
+            np.array([[c2, -s2, 0.0], [s2, c2, 0.0], [0.0, 0.0, 1.0]]))
 
 
 def limit_surface_c(polygon: np.ndarray, *, samples: int = 20000) -> float:
