@@ -11,6 +11,9 @@ Subcommands:
                ``experiment handplan``: planning by touch, thesis sec. 6.4).
     pomdp      tabular POMDPs: ``pomdp write`` a built-in benchmark as a Cassandra ``.pomdp``
                file; ``pomdp solve`` any ``.pomdp`` file with the point-based solver.
+    push       seed 003's pusher-slider: ``push simulate`` a procedure into a sensor log,
+               ``push estimate`` any log (see :mod:`diagrams.cli_push`); its study is
+               ``experiment visuotactile`` and its bench ``bench visuotactile``.
     scenes     list the built-in scenes, objects and tactile layouts.
 
 Studies (``experiments/``) are imported lazily, only by the subcommands that run them.
@@ -23,6 +26,7 @@ import json
 import sys
 from pathlib import Path
 
+from diagrams import cli_push
 from models.config import ConfigError, builtin_names
 
 
@@ -119,9 +123,13 @@ def main(argv: list[str] | None = None) -> int:
     solve.add_argument("--out", type=Path, default=None, help="write the policy (.npz)")
 
     commands.add_parser("scenes", help="list built-in scenes, objects and tactile layouts")
+    cli_push.add_commands(commands, studies, bench_kinds)
 
     args = parser.parse_args(argv)
     try:
+        handled = cli_push.run(args)
+        if handled is not None:
+            return handled
         if args.command == "simulate":
             return _simulate(args)
         if args.command == "bench" and args.bench == "timestep":

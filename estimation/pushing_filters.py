@@ -4,7 +4,8 @@
   occluded.
 - **EKF** (sec. V-C): the state is the pose and its covariance. The prediction is the
   stationary prior (the pose stays, with the stationary cost's covariance as process
-  noise). The update stacks the step's costs as measurements of the current pose, each
+  noise; pooled, or contact-aware like the smoother's option). The update stacks the
+  step's costs as measurements of the current pose, each
   linearised once at the prediction: the motion cost with the previous pose fixed at its
   estimate, one contact cost per rod in contact, and the vision cost (its Huber weight
   evaluated at the prediction). That is what "the same measurement functions" gives a
@@ -19,7 +20,6 @@ import numpy as np
 from estimation.pushing_costs import (
     Outline,
     contact_residual,
-    limit_surface_c,
     motion_residual,
     motion_terms,
     vision_residual,
@@ -58,16 +58,18 @@ class PushingEKF:
 
     Args:
         polygon: (V, 2) outline (m). noise: the costs' covariances. rod_radius_m: m.
-        c_m: limit-surface c (m); default from the outline.
+        c_m: limit-surface c (m); default: the noise model's.
+        contact_aware: use the noise model's contact-aware stationary covariances.
     """
 
     def __init__(self, polygon: np.ndarray, noise: PushingNoise, *, rod_radius_m: float,
-                 c_m: float | None = None):
+                 c_m: float | None = None, contact_aware: bool = False):
         self.polygon = np.asarray(polygon, dtype=float)
         self.outline = Outline(self.polygon)
         self.noise = noise
         self.radius = rod_radius_m
-        self.c = c_m if c_m is not None else limit_surface_c(self.polygon)
+        self.c = c_m if c_m is not None else noise.limit_surface_c(self.polygon)
+        self.contact_aware = contact_aware
         self.mean: np.ndarray | None = None
         self.covariance: np.ndarray | None = None
 
@@ -79,7 +81,9 @@ class PushingEKF:
         """One predict-update step; returns the mean (3,). ``previous_inputs`` is
         (rods, forces, contact) of the previous step (for the motion cost) or ``None``."""
         previous = self.mean.copy()
-        P = self.covariance + self.noise.stationary
+        pushed = bool(np.any(contact)) or (previous_inputs is not None
+                                           and bool(np.any(previous_inputs[2])))
+        P = self.covariance + self.noise.stationary_covariance(pushed, self.contact_aware)
         prior = self.mean.copy()
         rows, jacobians, blocks = [], [], []
         if previous_inputs is not None and previous_inputs[2].any():

@@ -7,7 +7,7 @@ or before ``t_k``, and the newest camera pose that arrived in ``(t_{k-1}, t_k]``
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -40,6 +40,11 @@ class PushingSteps:
 
     def __len__(self) -> int:
         return len(self.t)
+
+    def head(self, n: int) -> PushingSteps:
+        """The first ``n`` steps."""
+        return replace(self, **{f.name: getattr(self, f.name)[:n] for f in fields(self)
+                                if isinstance(getattr(self, f.name), np.ndarray)})
 
     @staticmethod
     def from_log(log: PushLog, rate_hz: float = ESTIMATE_RATE_HZ) -> PushingSteps:

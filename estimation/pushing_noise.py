@@ -20,14 +20,24 @@ import numpy as np
 
 from estimation.pushing_costs import (
     contact_residual,
+    limit_surface_c,
     motion_residual,
     motion_terms,
     stationary_residual,
     vision_residual,
 )
 from estimation.pushing_inputs import PushingSteps
+from models.pose import wrap_angle
 
 COSTS = ("motion", "contact", "vision", "stationary")
+#: Standard deviations added to every identified covariance (m, m, rad for the pose-like
+#: costs; N m^2 for the motion cost): a cost that never varied in the training data (an
+#: untouched object does not move at all in simulation) must not become a near-hard
+#: constraint that leaves the linear system numerically singular. 10 um and 0.1 mrad are
+#: below what the rig can resolve.
+FLOOR_SIGMA = {"motion": np.array([1e-8, 1e-8]), "contact": np.array([1e-5, 1e-5, 1e-5]),
+               "vision": np.array([1e-4, 1e-4, 1e-3]),
+               "stationary": np.array([1e-5, 1e-5, 1e-4])}
 
 
 @dataclass(frozen=True)
@@ -38,20 +48,48 @@ class PushingNoise:
         motion: (2, 2) of the motion cost (its units: N m^2, from m x N m).
         contact: (3, 3) of the contact cost (m^2).
         vision: (3, 3) of the vision cost (m^2, rad^2).
-        stationary: (3, 3) of the stationary prior per estimator step (m^2, rad^2).
+        stationary: (3, 3) of the stationary prior per estimator step (m^2, rad^2), pooled
+            over every step (seed 003).
+        stationary_pushed: (3, 3) the same over the steps where a rod touched the object at
+            either end, and ``stationary_free`` over the others: the contact-aware prior
+            (an extension; see ``SmootherSettings.stationary``). A pooled covariance is
+            too tight for a pushed object (it turns up to 0.4 deg per 10 ms step while the
+            pooled sigma is under 0.1 deg) and too loose for a free one.
         vision_huber_k: the Huber threshold, in standard deviations, of the robust vision
             cost.
+        c_scale: the limit surface's c as a multiple of the uniform-pressure value of the
+            object's outline (:func:`limit_surface_c`); identified from data like the
+            covariances (seed 003 fitted c = 0.0383 m for rect1, whose uniform value is
+            0.0345 m), and carried to other outlines as this ratio.
     """
 
     motion: np.ndarray = field(default_factory=lambda: np.diag([1.0e-10, 1.0e-10]))
     contact: np.ndarray = field(default_factory=lambda: np.diag([1e-6, 1e-6, 1e-6]))
     vision: np.ndarray = field(default_factory=lambda: np.diag([5e-5, 3e-5, 1.4e-3]))
     stationary: np.ndarray = field(default_factory=lambda: np.diag([2e-7, 2e-7, 2e-6]))
+    stationary_pushed: np.ndarray | None = None
+    stationary_free: np.ndarray | None = None
     vision_huber_k: float = 1.345
+    c_scale: float = 1.0
+
+    def limit_surface_c(self, polygon: np.ndarray) -> float:
+        """c (m) for the object ``polygon`` (V, 2)."""
+        return self.c_scale * limit_surface_c(polygon)
+
+    def stationary_covariance(self, pushed: bool, contact_aware: bool) -> np.ndarray:
+        """The stationary prior's covariance for a step (pooled unless ``contact_aware``
+        and both split covariances are known)."""
+        if contact_aware and self.stationary_pushed is not None:
+            return self.stationary_pushed if pushed else self.stationary_free
+        return self.stationary
 
     def to_json(self) -> dict:
-        return {name: np.asarray(getattr(self, name)).tolist() for name in COSTS} | {
-            "vision_huber_k": self.vision_huber_k}
+        out = {name: np.asarray(getattr(self, name)).tolist() for name in COSTS} | {
+            "vision_huber_k": self.vision_huber_k, "c_scale": self.c_scale}
+        for name in ("stationary_pushed", "stationary_free"):
+            if getattr(self, name) is not None:
+                out[name] = getattr(self, name).tolist()
+        return out
 
     def save(self, path: str | Path) -> None:
         Path(path).write_text(json.dumps(self.to_json(), indent=2))
@@ -60,33 +98,39 @@ class PushingNoise:
     def load(path: str | Path) -> PushingNoise:
         """Read a noise file written by :meth:`save` (errors name the file and field)."""
         data = json.loads(Path(path).read_text())
-        sizes = {"motion": 2, "contact": 3, "vision": 3, "stationary": 3}
+        sizes = {"motion": 2, "contact": 3, "vision": 3, "stationary": 3,
+                 "stationary_pushed": 3, "stationary_free": 3}
         values = {}
         for name, n in sizes.items():
             if name not in data:
+                if name.startswith("stationary_"):
+                    continue
                 raise ValueError(f"{path}: field '{name}' is missing")
             matrix = np.asarray(data[name], dtype=float)
             if matrix.shape != (n, n) or not np.all(np.linalg.eigvalsh(matrix) > 0):
                 raise ValueError(f"{path}: field '{name}' must be a positive-definite "
                                  f"{n} x {n} matrix")
             values[name] = matrix
-        return PushingNoise(**values, vision_huber_k=float(data.get("vision_huber_k", 1.345)))
+        return PushingNoise(**values, vision_huber_k=float(data.get("vision_huber_k", 1.345)),
+                            c_scale=float(data.get("c_scale", 1.0)))
 
 
 @dataclass(frozen=True)
 class Residuals:
-    """Each cost's residuals at the true poses, (n, dim) per cost."""
+    """Each cost's residuals at the true poses, (n, dim) per cost; ``pushed`` (n,) marks
+    the stationary residuals of steps with a rod in contact at either end."""
 
     motion: np.ndarray
     contact: np.ndarray
     vision: np.ndarray
     stationary: np.ndarray
+    pushed: np.ndarray
 
 
 def residuals_at_truth(steps: PushingSteps, polygon: np.ndarray, c: float) -> Residuals:
     """Evaluate every cost the estimator would add, at the true poses."""
     truth, radius = steps.truth, steps.rod_radius_m
-    motion, contact, vision, stationary = [], [], [], []
+    motion, contact, vision, stationary, pushed = [], [], [], [], []
     for k in range(len(steps)):
         if steps.vision_ok[k]:
             vision.append(vision_residual(truth[k], steps.vision[k])[0])
@@ -96,6 +140,7 @@ def residuals_at_truth(steps: PushingSteps, polygon: np.ndarray, c: float) -> Re
         if k == 0:
             continue
         stationary.append(stationary_residual(truth[k - 1], truth[k])[0])
+        pushed.append(bool(steps.contact[k - 1].any() or steps.contact[k].any()))
         touching = steps.contact[k - 1]
         if touching.any():
             _, points = motion_terms(steps.rods[k - 1, touching], steps.forces[k - 1, touching],
@@ -107,16 +152,47 @@ def residuals_at_truth(steps: PushingSteps, polygon: np.ndarray, c: float) -> Re
         return np.array(rows) if rows else np.zeros((0, dim))
 
     return Residuals(stack(motion, 2), stack(contact, 3), stack(vision, 3),
-                     stack(stationary, 3))
+                     stack(stationary, 3), np.array(pushed, dtype=bool))
 
 
-def identify(residuals: list[Residuals], *, vision_huber_k: float = 1.345) -> PushingNoise:
-    """Second moments (about zero) of the pooled residuals of several runs."""
-    def moment(name, dim):
-        rows = np.concatenate([getattr(r, name) for r in residuals])
+def fit_limit_surface_c(steps: list[PushingSteps]) -> float:
+    """The c (m) that best explains the true motion under the measured forces: least
+    squares of the motion cost at the true poses, ``min_c sum |dp m - c^2 F w|^2``, which
+    is linear in c^2 (closed form)."""
+    numerator = denominator = 0.0
+    for run in steps:
+        truth, radius = run.truth, run.rod_radius_m
+        for k in range(1, len(run)):
+            touching = run.contact[k - 1]
+            if not touching.any():
+                continue
+            forces = run.forces[k - 1, touching]
+            _, points = motion_terms(run.rods[k - 1, touching], forces, radius)
+            arms = points - truth[k - 1, :2]
+            m = float(np.sum(arms[:, 0] * forces[:, 1] - arms[:, 1] * forces[:, 0]))
+            dp = truth[k, :2] - truth[k - 1, :2]
+            w = float(wrap_angle(truth[k, 2] - truth[k - 1, 2]))
+            a, b = dp * m, forces.sum(axis=0) * w
+            numerator += float(a @ b)
+            denominator += float(b @ b)
+    if denominator <= 0.0 or numerator <= 0.0:
+        raise ValueError("the runs hold no turning push to fit the limit surface's c")
+    return float(np.sqrt(numerator / denominator))
+
+
+def identify(residuals: list[Residuals], *, vision_huber_k: float = 1.345,
+             c_scale: float = 1.0) -> PushingNoise:
+    """Second moments (about zero) of the pooled residuals of several runs (computed with
+    the limit surface's ``c_scale``)."""
+    def moment(name, dim, select=None):
+        rows = np.concatenate([getattr(r, name)[select(r)] if select else getattr(r, name)
+                               for r in residuals])
         if len(rows) < dim + 1:
             raise ValueError(f"too few {name} residuals ({len(rows)}) to identify its noise")
-        return rows.T @ rows / len(rows) + 1e-18 * np.eye(dim)
+        return rows.T @ rows / len(rows) + np.diag(FLOOR_SIGMA[name] ** 2)
 
     return PushingNoise(moment("motion", 2), moment("contact", 3), moment("vision", 3),
-                        moment("stationary", 3), vision_huber_k)
+                        moment("stationary", 3),
+                        moment("stationary", 3, lambda r: r.pushed),
+                        moment("stationary", 3, lambda r: ~r.pushed),
+                        vision_huber_k, c_scale)

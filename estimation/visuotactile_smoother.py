@@ -13,9 +13,10 @@ The costs are :mod:`estimation.pushing_costs` wrapped as ``gtsam.CustomFactor`` 
 analytic Jacobians. GTSAM is the maintained iSAM2 implementation (Kaess et al.); we use it
 rather than writing a sparse incremental QR of our own.
 
-History (sec. V-G): ``history`` poses are kept. Every ``relinearize_every`` steps the
-window is rebuilt in batch: when it holds ``history + chunk`` poses (``chunk =
-min(relinearize_every, history)``) the oldest ``chunk`` are dropped, a prior replaces them on
+History (sec. V-G): ``history`` poses are kept. ``relinearize_every`` steps after the last
+rebuild, or as soon as the window holds ``history + chunk`` poses (``chunk =
+min(relinearize_every, history)``), the window is rebuilt in batch: the oldest poses beyond
+``history`` are dropped, a prior replaces them on
 the oldest kept pose, and the whole window is relinearised at the current estimate by a
 fresh iSAM2. With history 200 and every 100 steps this is the paper's scheme exactly (keep
 200; at 300 drop the oldest 100; relinearise in batch every 100). Between rebuilds:
@@ -41,14 +42,17 @@ from gtsam.symbol_shorthand import X
 from estimation.pushing_costs import (
     Outline,
     contact_residual,
-    limit_surface_c,
     motion_residual,
     motion_terms,
     stationary_residual,
     vision_residual,
 )
-from estimation.pushing_noise import COSTS, PushingNoise
 from estimation.pushing_inputs import PushingSteps
+from estimation.pushing_noise import COSTS, PushingNoise
+
+
+#: iSAM2's relinearisation threshold in "fluid" mode (m, m, rad of a pose's update).
+FLUID_THRESHOLD = 1e-4
 
 
 @dataclass(frozen=True)
@@ -60,7 +64,11 @@ class SmootherSettings:
         drop_prior: ``"marginal"`` or ``"weak"`` (paper), on the oldest kept pose.
         weak_prior_sigma: (3,) m, m, rad: the weak prior's standard deviations.
         costs: which of motion, contact, vision, stationary to use.
-        c_m: the limit surface's c (m); ``None``: from the outline, uniform pressure.
+        stationary: ``"pooled"`` (seed 003: one covariance for every step) or
+            ``"contact-aware"`` (the covariance of pushed steps when a rod touches at either
+            end of the step, of free steps otherwise; needs a noise model that has them).
+        c_m: the limit surface's c (m); ``None``: the noise model's (its ``c_scale`` times
+            the outline's uniform-pressure value).
     """
 
     history: int = 200
@@ -69,6 +77,7 @@ class SmootherSettings:
     drop_prior: str = "marginal"
     weak_prior_sigma: tuple[float, float, float] = (0.05, 0.05, 0.5)
     costs: tuple[str, ...] = COSTS
+    stationary: str = "pooled"
     c_m: float | None = None
 
     def __post_init__(self) -> None:
@@ -78,6 +87,8 @@ class SmootherSettings:
             raise ValueError(f"relinearization={self.relinearization!r}: batch or fluid")
         if self.drop_prior not in ("marginal", "weak"):
             raise ValueError(f"drop_prior={self.drop_prior!r}: marginal or weak")
+        if self.stationary not in ("pooled", "contact-aware"):
+            raise ValueError(f"stationary={self.stationary!r}: pooled or contact-aware")
         unknown = set(self.costs) - set(COSTS)
         if unknown:
             raise ValueError(f"unknown costs {sorted(unknown)}; allowed: {', '.join(COSTS)}")
@@ -104,15 +115,20 @@ class VisuoTactileSmoother:
         self.outline = Outline(self.polygon)
         self.settings = settings
         self.radius = rod_radius_m
-        self.c = settings.c_m if settings.c_m is not None else limit_surface_c(self.polygon)
+        self.c = settings.c_m if settings.c_m is not None else noise.limit_surface_c(self.polygon)
         self._models = {
             "motion": gtsam.noiseModel.Gaussian.Covariance(noise.motion),
             "contact": gtsam.noiseModel.Gaussian.Covariance(noise.contact),
             "vision": gtsam.noiseModel.Robust.Create(
                 gtsam.noiseModel.mEstimator.Huber.Create(noise.vision_huber_k),
                 gtsam.noiseModel.Gaussian.Covariance(noise.vision)),
-            "stationary": gtsam.noiseModel.Gaussian.Covariance(noise.stationary),
         }
+        aware = settings.stationary == "contact-aware"
+        if aware and noise.stationary_pushed is None:
+            raise ValueError("a contact-aware stationary prior needs a noise model with "
+                             "stationary_pushed and stationary_free")
+        self._stationary_models = {pushed: gtsam.noiseModel.Gaussian.Covariance(
+            noise.stationary_covariance(pushed, aware)) for pushed in (False, True)}
         self._vision_cov = noise.vision
         self._steps: deque[tuple[int, list, list]] = deque()  # (k, own factors, linking)
         self._k = -1
@@ -131,6 +147,9 @@ class VisuoTactileSmoother:
         params = gtsam.ISAM2Params()
         if self.settings.relinearization == "batch":
             params.enableRelinearization = False
+        else:  # relinearise any pose that moved 0.1 mm or 0.1 mrad, at every update
+            params.setRelinearizeThreshold(FLUID_THRESHOLD)
+            params.relinearizeSkip = 1
         return params
 
     def start(self, pose: np.ndarray, covariance: np.ndarray | None = None) -> None:
@@ -149,6 +168,7 @@ class VisuoTactileSmoother:
         values.insert(X(0), gtsam.Pose2(*pose))
         self._isam.update(graph, values)
         self._steps.append((0, [], []))
+        self._since_rebuild = 0
         self._estimate = np.asarray(pose, dtype=float)
 
     def step(self, rods: np.ndarray, forces: np.ndarray, contact: np.ndarray,
@@ -166,9 +186,10 @@ class VisuoTactileSmoother:
         self._k += 1
         k = self._k
         own, linking = [], []
-        if "stationary" in costs:
-            linking.append(self._stationary(k))
         previous = self._previous_inputs
+        if "stationary" in costs:
+            pushed = bool(np.any(contact)) or (previous is not None and previous[2].any())
+            linking.append(self._stationary(k, pushed))
         if "motion" in costs and previous is not None and previous[2].any():
             touching = previous[2]
             _, points = motion_terms(previous[0][touching], previous[1][touching], self.radius)
@@ -185,7 +206,11 @@ class VisuoTactileSmoother:
         values = gtsam.Values()
         values.insert(X(k), gtsam.Pose2(*self._estimate))
         self._steps.append((k, own, linking))
-        if k % self.settings.relinearize_every == 0:
+        self._since_rebuild += 1
+        chunk = min(self.settings.relinearize_every, self.settings.history)
+        if (self._since_rebuild >= self.settings.relinearize_every
+                or len(self._steps) >= self.settings.history + chunk):
+            self._since_rebuild = 0
             self._isam.update(graph, values)
             rebuild = time.perf_counter()
             self._rebuild()
@@ -250,14 +275,14 @@ class VisuoTactileSmoother:
         self._isam.update(graph, values, constrainedKeys=newest)
 
     # -- factors
-    def _stationary(self, k: int) -> gtsam.CustomFactor:
+    def _stationary(self, k: int, pushed: bool) -> gtsam.CustomFactor:
         def error(this, values, H):
             a, b = _pose(values, this.keys()[0]), _pose(values, this.keys()[1])
             r, J1, J2 = stationary_residual(a, b)
             if H is not None:
                 H[0], H[1] = J1, J2
             return r
-        return gtsam.CustomFactor(self._models["stationary"], [X(k - 1), X(k)], error)
+        return gtsam.CustomFactor(self._stationary_models[pushed], [X(k - 1), X(k)], error)
 
     def _motion(self, k: int, forces: np.ndarray, points: np.ndarray) -> gtsam.CustomFactor:
         c = self.c

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from pydrake.common import MemoryFile
-from pydrake.geometry import Convex, GeometryId, InMemoryMesh, Shape
+from pydrake.geometry import Convex, GeometryId, InMemoryMesh, Mesh, Shape
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import (
@@ -19,6 +19,7 @@ from pydrake.multibody.tree import (
     SpatialInertia,
     UnitInertia,
 )
+from scipy.spatial import Delaunay
 
 from models.contact import ContactMaterial
 
@@ -79,7 +80,7 @@ def prism_mesh(vertices_xy: np.ndarray, height_m: float, label: str) -> Convex:
     for i in range(n):
         j = (i + 1) % n
         lines.append(f"f {i + 1} {j + 1} {n + j + 1} {n + i + 1}")
-    mesh = InMemoryMesh(MemoryFile("\n".join(lines) + "\n", ".obj", label))
+    mesh = InMemoryMesh(mesh_file=MemoryFile("\n".join(lines) + "\n", ".obj", label))
     return Convex(mesh)
 
 
@@ -103,3 +104,48 @@ def add_geometry(
                                                     material.proximity_properties())
     plant.RegisterVisualGeometry(body, X_BG, shape, name, np.asarray(rgba, dtype=float))
     return collision
+
+
+def tessellated_prism_mesh(vertices_xy: np.ndarray, height_m: float, spacing_m: float,
+                           label: str) -> Mesh:
+    """A Drake ``Mesh``: the convex polygon ``vertices_xy`` (V, 2) extruded along z (centred
+    on z = 0), with its top and bottom faces triangulated on a grid of ``spacing_m``.
+
+    A rigid-hydroelastic geometry's contact surface has one polygon per triangle of its
+    surface mesh, and a discrete solver applies friction at each polygon's centroid: with
+    the two triangles of a coarse face, a sliding object would feel almost no frictional
+    moment. A grid restores the distributed friction of a flat support (the limit
+    surface's moment).
+    """
+    v = np.asarray(vertices_xy, dtype=float)
+    boundary = []
+    for a, b in zip(v, np.roll(v, -1, axis=0), strict=True):
+        pieces = max(1, int(np.ceil(np.linalg.norm(b - a) / spacing_m)))
+        boundary += [a + (b - a) * k / pieces for k in range(pieces)]
+    boundary = np.array(boundary)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    xs = np.arange(lo[0] + spacing_m / 2, hi[0], spacing_m)
+    ys = np.arange(lo[1] + spacing_m / 2, hi[1], spacing_m)
+    grid = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
+    edges = np.roll(v, -1, axis=0) - v
+    margin = spacing_m / 4
+    lengths = np.linalg.norm(edges, axis=1)
+    inside = np.all((edges[None, :, 0] * (grid[:, None, 1] - v[None, :, 1])
+                     - edges[None, :, 1] * (grid[:, None, 0] - v[None, :, 0]))
+                    / lengths[None, :] > margin, axis=1)
+    points = np.vstack([boundary, grid[inside]])
+    triangles = Delaunay(points).simplices
+    a, b, c = (points[triangles[:, i]] for i in range(3))
+    area = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    triangles = np.where((area > 0)[:, None], triangles, triangles[:, ::-1])  # all CCW
+    n, nb = len(points), len(boundary)
+    half = height_m / 2
+    lines = [f"v {x:.9f} {y:.9f} {-half:.9f}" for x, y in points]
+    lines += [f"v {x:.9f} {y:.9f} {half:.9f}" for x, y in points]
+    lines += [f"f {i + 1} {k + 1} {j + 1}" for i, j, k in triangles]  # bottom, facing -z
+    lines += [f"f {n + i + 1} {n + j + 1} {n + k + 1}" for i, j, k in triangles]  # top
+    for i in range(nb):  # boundary points come first, counter-clockwise
+        j = (i + 1) % nb
+        lines.append(f"f {i + 1} {j + 1} {n + j + 1}")
+        lines.append(f"f {i + 1} {n + j + 1} {n + i + 1}")
+    return Mesh(InMemoryMesh(mesh_file=MemoryFile("\n".join(lines) + "\n", ".obj", label)))

@@ -10,8 +10,9 @@ builds the plant:
   stiff position control is modelled without a controller diagram. Its two rods are
   rigid-hydroelastic cylinders on the carriage body; their tips clear the table by
   ``pusher_clearance_m``.
-- The **object** is a free body (compliant hydroelastic, steel's 1e8 Pa from its file).
-- The **table** is rigid hydroelastic.
+- The **object** is a free, rigid-hydroelastic body; the **rods** are stiff compliant
+  cylinders.
+- The **table** is compliant hydroelastic (see :data:`TABLE_MODULUS_PA` for why).
 
 Friction: Drake combines two geometries' coefficients as ``2 mu_a mu_b / (mu_a + mu_b)``.
 The object keeps its file's coefficient ``mu_o``; the rods get the one that makes the rod-
@@ -38,16 +39,31 @@ from pydrake.multibody.tree import (
     UnitInertia,
 )
 
-from models.bodies import add_geometry
+from models.bodies import add_geometry, tessellated_prism_mesh
 from models.config import ASSETS_DIR, Fields
 from models.contact import ContactMaterial
-from models.objects import ObjectSpec, add_object
+from models.objects import ObjectSpec
 from models.pose import planar_to_transform
 
 DEFAULT_RIG = ASSETS_DIR / "pusher_slider.yaml"
 TABLE_RGBA = (0.55, 0.42, 0.3, 1.0)
 ROD_RGBA = (0.3, 0.3, 0.35, 1.0)
 CARRIAGE_RGBA = (0.9, 0.55, 0.1, 1.0)
+#: The table is compliant and the object rigid, so that the support pressure is uniform
+#: under the object: a compliant box's pressure field grows with the depth below its
+#: nearest face, which under a flat object resting on a thick table is the same
+#: everywhere. (A compliant object's field peaks at its centre instead.)
+TABLE_MODULUS_PA = 1.0e7
+TABLE_THICKNESS_M = 0.1
+#: Grid (m) of the object's support-face triangulation (see
+#: :func:`models.bodies.tessellated_prism_mesh`). Measured on rect1's one-finger pushes
+#: (the limit surface's c fitted to the simulated twist, and the wall time of the 41 s
+#: standard procedure): untessellated 0.020 m, 18 s; 30 mm grid 0.027 m, 21 s; 15 mm
+#: 0.027 m, 34 s; 5 mm 0.027 m, 155 s. 30 mm is converged.
+SUPPORT_GRID_M = 0.03
+#: The rods are stiff compliant cylinders (a rigid rod against the rigid object would fall
+#: back to point contact).
+ROD_MODULUS_PA = 1.0e8
 #: Carriage PD gains: position (N/m, N m/rad) and damping; stiff like an industrial arm.
 CARRIAGE_KP = (2.0e4, 2.0e4, 200.0)
 CARRIAGE_KD = (8.0e2, 8.0e2, 8.0)
@@ -73,7 +89,7 @@ class CameraSpec:
     top face and every corner must be in sight)."""
 
     rate_hz: float = 30.0
-    position_m: tuple[float, float, float] = (0.0, -0.55, 0.30)
+    position_m: tuple[float, float, float] = (0.0, -0.35, 0.55)
     bias_m: tuple[float, float] = (0.006, -0.004)
     bias_deg: float = 1.5
     noise_m: float = 0.003
@@ -132,7 +148,7 @@ class PusherSliderRig:
         for name in surfaces_raw.keys():
             surfaces[name] = surfaces_raw.number(name, min=0.01, max=2.0)
         surfaces_raw.done()
-        sensor = fields.sub("force_sensor")
+        sensor = fields.sub("force_sensor", {})
         force = ForceSensorSpec(
             rate_hz=sensor.number("rate_hz", d.force_sensor.rate_hz, min=1.0, max=5000.0),
             noise_n=sensor.number("noise_n", d.force_sensor.noise_n, min=0.0, max=10.0),
@@ -142,7 +158,7 @@ class PusherSliderRig:
             position_noise_m=sensor.number("position_noise_m", d.force_sensor.position_noise_m,
                                            min=0.0, max=0.05))
         sensor.done()
-        cam = fields.sub("camera")
+        cam = fields.sub("camera", {})
         camera = CameraSpec(
             rate_hz=cam.number("rate_hz", d.camera.rate_hz, min=0.1, max=1000.0),
             position_m=cam.vector("position_m", 3, d.camera.position_m, min=-10, max=10),
@@ -225,14 +241,18 @@ def add_pusher_slider(plant: MultibodyPlant, rig: PusherSliderRig,
     mu_o = object_spec.material.mu_dynamic
     rod_mu = table_mu_for(rig.pusher_object_mu, mu_o, rig.source or "rig")
     table_mu = table_mu_for(rig.surface_mu, mu_o, rig.source or "rig")
-    rigid = dict(hydroelastic_modulus_pa=None, resolution_hint_m=0.002)
-    table_material = ContactMaterial(mu_static=table_mu, mu_dynamic=table_mu, **rigid)
-    rod_material = ContactMaterial(mu_static=rod_mu, mu_dynamic=rod_mu, **rigid)
+    table_material = ContactMaterial(mu_static=table_mu, mu_dynamic=table_mu,
+                                     hydroelastic_modulus_pa=TABLE_MODULUS_PA)
+    rod_material = ContactMaterial(mu_static=rod_mu, mu_dynamic=rod_mu,
+                                   hydroelastic_modulus_pa=ROD_MODULUS_PA,
+                                   resolution_hint_m=0.002)
+    rigid_object = replace(object_spec, material=replace(object_spec.material,
+                                                         hydroelastic_modulus_pa=None))
 
     env = plant.AddModelInstance("table")
     table = plant.AddRigidBody("table", env)
-    add_geometry(plant, table, RigidTransform([0, 0, -0.01]), Box(1.2, 1.2, 0.02), "table_top",
-                 table_material, TABLE_RGBA)
+    add_geometry(plant, table, RigidTransform([0, 0, -TABLE_THICKNESS_M / 2]),
+                 Box(1.2, 1.2, TABLE_THICKNESS_M), "table_top", table_material, TABLE_RGBA)
     plant.WeldFrames(plant.world_frame(), table.body_frame())
 
     carriage = plant.AddModelInstance("carriage")
@@ -263,11 +283,17 @@ def add_pusher_slider(plant: MultibodyPlant, rig: PusherSliderRig,
     add_geometry(plant, body, RigidTransform([0, 0, top + cz / 2]), Box(cx, cy, cz),
                  "carriage_plate", None, CARRIAGE_RGBA)
     wx, wy, wz = rig.wrist_size_m
-    add_geometry(plant, body, RigidTransform([-cx / 4, 0, top + cz + wz / 2]), Box(wx, wy, wz),
+    add_geometry(plant, body, RigidTransform([0, 0, top + cz + wz / 2]), Box(wx, wy, wz),
                  "wrist", None, CARRIAGE_RGBA)
 
     movable = plant.AddModelInstance("object")
-    object_body = add_object(plant, object_spec, movable, name="object")
+    object_body = plant.AddRigidBody("object", movable, object_spec.spatial_inertia())
+    collision = tessellated_prism_mesh(object_spec.footprint(), object_spec.height_m,
+                                       SUPPORT_GRID_M, "object")
+    plant.RegisterCollisionGeometry(object_body, RigidTransform(), collision, "object",
+                                    rigid_object.material.proximity_properties())
+    plant.RegisterVisualGeometry(object_body, RigidTransform(), object_spec.shape3d(),
+                                 "object", np.asarray(object_spec.rgba))
     return PusherSliderWorld(carriage, object_body, (rods[0], rods[1]), object_spec, rig)
 
 
@@ -284,5 +310,6 @@ def occluders(rig: PusherSliderRig) -> tuple[np.ndarray, np.ndarray]:
     cx, cy, cz = rig.carriage_size_m
     wx, wy, wz = rig.wrist_size_m
     boxes = np.array([[0, 0, top + cz / 2, cx, cy, cz],
-                      [-cx / 4, 0, top + cz + wz / 2, wx, wy, wz]])
+                      [0, 0, top + cz + wz / 2, wx, wy, wz]])
     return cylinders, boxes
+

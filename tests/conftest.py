@@ -49,3 +49,73 @@ def small_hand_model():
     spec = HandProblemSpec(trust_x_m=(0.0, 0.22), trust_y_m=(-0.08, 0.08),
                            samples_per_state=4)
     return build_hand_pomdp(world, spec, rng=np.random.default_rng(0), progress=False)
+
+
+def _synthetic_push_log(seed: int = 0, c_m: float = 0.03):
+    """A pusher log without Drake: rect1 pushed straight by both rods (1-3 s), then turned
+    by one rod under the ellipsoidal limit surface with sticking contact (4-6 s), with the
+    rig's kind of noise: forces 0.05 N, rods 0.2 mm, camera at 100/3 Hz with a (5, -3) mm,
+    1 deg bias, 3 mm and 1.5 deg noise, hidden during 2-2.5 s. Rows at 100 Hz."""
+    import numpy as np
+
+    from models.push_log import PushLog
+
+    rng = np.random.default_rng(seed)
+    dt, radius, half = 0.01, 0.003125, 0.045
+    pose = np.zeros(3)
+    rows = []
+    for k in range(int(7.0 / dt)):
+        t = k * dt
+        c, s = np.cos(pose[2]), np.sin(pose[2])
+        R = np.array([[c, -s], [s, c]])
+        forces = np.zeros((2, 2))
+        if t < 1.0:  # approach: rods behind the back face, not touching yet
+            rods = np.array([[-half - radius - 0.03 * (1 - t), 0.02],
+                             [-half - radius - 0.03 * (1 - t), -0.02]])
+            rods = rods @ R.T + pose[:2]
+            twist = np.zeros(3)
+        elif t < 3.0:  # straight two-rod push at 60 mm/s
+            twist = np.array([0.06, 0.0, 0.0])
+            points = np.array([[-half, 0.02], [-half, -0.02]])
+            forces = np.array([[1.0, 0.0], [1.0, 0.0]]) @ R.T
+            rods = (points - radius * np.array([1.0, 0.0])) @ R.T + pose[:2]
+        elif t < 4.0:  # the rods wait, apart from the object
+            twist = np.zeros(3)
+            rods = np.array([[-half - 0.05, 0.02], [-half - 0.05, -0.02]]) @ R.T + pose[:2]
+        elif t < 6.0:  # one rod, 25 mm off-centre, sticking (reference, sticking case)
+            xc, yc = -half, 0.025
+            vp = np.array([0.04, 0.0])
+            D = c_m**2 + xc**2 + yc**2
+            vx = ((c_m**2 + xc**2) * vp[0] + xc * yc * vp[1]) / D
+            vy = (xc * yc * vp[0] + (c_m**2 + yc**2) * vp[1]) / D
+            w = (xc * vy - yc * vx) / c_m**2
+            twist = np.array([vx, vy, w])
+            f_obj = 1.5 * np.array([vx, vy]) / np.hypot(vx, vy)
+            forces[0] = R @ f_obj
+            rods = np.array([R @ (np.array([xc, yc]) - radius * f_obj / 1.5) + pose[:2],
+                             R @ np.array([xc, yc - 0.1]) + pose[:2]])
+        else:
+            twist = np.zeros(3)
+            rods = np.array([[-half - 0.05, 0.0], [-half - 0.05, -0.1]]) @ R.T + pose[:2]
+        vision_ok = (k % 3 == 0) and not (2.0 <= t < 2.5)
+        vision = (pose + np.array([0.005, -0.003, np.deg2rad(1.0)])
+                  + rng.normal(0, [0.003, 0.003, np.deg2rad(1.5)])) if vision_ok else np.full(3,
+                                                                                      np.nan)
+        rows.append((t, rods + rng.normal(0, 0.0002, (2, 2)),
+                     forces + rng.normal(0, 0.05, (2, 2)), vision_ok, vision, pose.copy()))
+        pose = pose + np.concatenate([R @ twist[:2], [twist[2]]]) * dt
+    t, rods, forces, ok, vision, truth = (np.array(v) for v in zip(*rows, strict=True))
+    return PushLog(t, rods, forces, ok, vision, truth, np.full((len(t), 3), np.nan), "rect1",
+                   radius, 0.3, "synthetic")
+
+
+@pytest.fixture(scope="session")
+def synthetic_push_log():
+    """A Drake-free pusher log with ground truth (see :func:`_synthetic_push_log`)."""
+    return _synthetic_push_log()
+
+
+@pytest.fixture(scope="session")
+def synthetic_push_factory():
+    """Make more synthetic pusher logs: ``factory(seed, c_m)``."""
+    return _synthetic_push_log

@@ -1,0 +1,117 @@
+"""Seed 003's estimators on a Drake-free synthetic push (tests/conftest.py): the smoother,
+its window, the EKF and vision baselines, and the noise identification."""
+
+import numpy as np
+import pytest
+
+from estimation.pushing_costs import limit_surface_c
+from estimation.pushing_filters import PushingEKF, vision_only
+from estimation.pushing_inputs import PushingSteps, rmse
+from estimation.pushing_noise import (
+    PushingNoise,
+    fit_limit_surface_c,
+    identify,
+    residuals_at_truth,
+)
+from estimation.visuotactile_smoother import SmootherSettings, VisuoTactileSmoother
+from models.objects import ObjectSpec
+
+RECT1 = ObjectSpec.load("rect1").footprint()
+
+
+@pytest.fixture(scope="module")
+def steps(synthetic_push_log):
+    return PushingSteps.from_log(synthetic_push_log)
+
+
+@pytest.fixture(scope="module")
+def noise(steps):
+    c = fit_limit_surface_c([steps])
+    return identify([residuals_at_truth(steps, RECT1, c)], c_scale=c / limit_surface_c(RECT1))
+
+
+def test_steps_resample_the_log_at_100_hz(steps, synthetic_push_log):
+    assert len(steps) == len(synthetic_push_log)
+    assert steps.vision_ok.sum() == synthetic_push_log.vision_ok.sum()
+    assert steps.contact[:, 0].sum() == 400 and steps.contact[:, 1].sum() == 200
+    assert len(steps.head(10)) == 10
+
+
+@pytest.mark.parametrize("c_true", [0.025, 0.035])
+def test_limit_surface_c_is_recovered_from_a_turning_push(synthetic_push_factory, c_true):
+    log = synthetic_push_factory(1, c_true)
+    assert fit_limit_surface_c([PushingSteps.from_log(log)]) == pytest.approx(c_true, rel=0.03)
+
+
+def test_identified_noise_matches_the_synthetic_sensors(noise):
+    vision_sigma = np.sqrt(np.diag(noise.vision))
+    # 3 mm noise on a 5 mm / 3 mm bias: second moments about zero
+    assert vision_sigma[0] == pytest.approx(np.hypot(0.003, 0.005), rel=0.2)
+    assert vision_sigma[1] == pytest.approx(np.hypot(0.003, 0.003), rel=0.2)
+    assert noise.stationary_pushed[0, 0] > 100 * noise.stationary_free[0, 0]
+    assert np.all(np.linalg.eigvalsh(noise.stationary_free) > 0)  # floored, not singular
+
+
+def test_noise_file_round_trip_and_errors(noise, tmp_path):
+    path = tmp_path / "noise.json"
+    noise.save(path)
+    back = PushingNoise.load(path)
+    np.testing.assert_allclose(back.contact, noise.contact)
+    np.testing.assert_allclose(back.stationary_free, noise.stationary_free)
+    assert back.c_scale == pytest.approx(noise.c_scale)
+    path.write_text('{"motion": [[1, 0], [0, 1]], "contact": [[1]]}')
+    with pytest.raises(ValueError, match="'contact' must be a positive-definite 3 x 3"):
+        PushingNoise.load(path)
+
+
+def test_smoother_beats_vision_and_the_ekf(steps, noise):
+    vision_mm, vision_deg = rmse(vision_only(steps), steps.truth)
+    ekf_mm, _ = rmse(PushingEKF(RECT1, noise, rod_radius_m=steps.rod_radius_m).run(steps),
+                     steps.truth)
+    paper = VisuoTactileSmoother(RECT1, noise, SmootherSettings(),
+                                 rod_radius_m=steps.rod_radius_m).run(steps)
+    ours = VisuoTactileSmoother(RECT1, noise, SmootherSettings(relinearization="fluid",
+                                                               stationary="contact-aware"),
+                                rod_radius_m=steps.rod_radius_m).run(steps)
+    paper_mm, _ = rmse(paper, steps.truth)
+    ours_mm, ours_deg = rmse(ours, steps.truth)
+    assert paper_mm < vision_mm
+    assert ours_mm < vision_mm / 2 and ours_mm < ekf_mm
+    assert ours_deg < vision_deg
+    assert np.all(np.isfinite(ours))
+
+
+def test_window_keeps_at_most_history_plus_a_chunk(steps, noise):
+    smoother = VisuoTactileSmoother(RECT1, noise, SmootherSettings(history=20,
+                                                                   relinearize_every=10),
+                                    rod_radius_m=steps.rod_radius_m)
+    smoother.run(steps)
+    assert len(smoother._steps) <= 30
+    assert len(smoother.rebuild_seconds) == pytest.approx(len(steps) / 10, abs=1)  # one per 10
+    weak = VisuoTactileSmoother(RECT1, noise, SmootherSettings(history=20, relinearize_every=10,
+                                                               drop_prior="weak"),
+                                rod_radius_m=steps.rod_radius_m).run(steps)
+    assert np.all(np.isfinite(weak))
+
+
+def test_one_step_history_rebuilds_every_step(steps, noise):
+    smoother = VisuoTactileSmoother(RECT1, noise, SmootherSettings(history=1),
+                                    rod_radius_m=steps.rod_radius_m)
+    smoother.run(steps.head(50))
+    assert len(smoother._steps) <= 2
+    assert len(smoother.rebuild_seconds) == 49
+
+
+def test_bad_settings_are_refused():
+    with pytest.raises(ValueError, match="history"):
+        SmootherSettings(history=0)
+    with pytest.raises(ValueError, match="unknown costs"):
+        SmootherSettings(costs=("motion", "sound"))
+    with pytest.raises(ValueError, match="batch or fluid"):
+        SmootherSettings(relinearization="sometimes")
+    with pytest.raises(ValueError, match="contact-aware"):
+        VisuoTactileSmoother(RECT1, PushingNoise(), SmootherSettings(stationary="contact-aware"),
+                             rod_radius_m=0.003)
+    with pytest.raises(RuntimeError, match="start"):
+        VisuoTactileSmoother(RECT1, PushingNoise(), rod_radius_m=0.003).step(
+            np.zeros((2, 2)), np.zeros((2, 2)), np.zeros(2, bool), None)
