@@ -161,6 +161,9 @@ def simulate_push(rig: PusherSliderRig, object_spec: ObjectSpec, procedure: list
     last_sample_t, last_frame_t = -1.0, -1.0
     frames = occluded = 0
     if meshcat is not None:
+        # look at the object from the front-right and above, 45 cm away
+        meshcat.SetCameraPose(pose0 + np.array([0.30, -0.35, 0.30]),
+                              np.array([pose0[0], pose0[1], 0.0]))
         meshcat.StartRecording(frames_per_second=30.0)
     t_end = 0.0
     for stroke in tqdm(procedure, desc="simulating push", unit="stroke", disable=not progress):

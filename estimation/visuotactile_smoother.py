@@ -50,7 +50,6 @@ from estimation.pushing_costs import (
 from estimation.pushing_inputs import PushingSteps
 from estimation.pushing_noise import COSTS, PushingNoise
 
-
 #: iSAM2's relinearisation threshold in "fluid" mode (m, m, rad of a pose's update).
 FLUID_THRESHOLD = 1e-4
 

@@ -26,7 +26,7 @@ Columns (SI units; world frame; one row per force sample):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -73,6 +73,11 @@ class PushLog:
 
     def __len__(self) -> int:
         return len(self.t)
+
+    def head(self, n: int) -> PushLog:
+        """The first ``n`` rows."""
+        return replace(self, **{f.name: getattr(self, f.name)[:n] for f in fields(self)
+                                if isinstance(getattr(self, f.name), np.ndarray)})
 
     def contacts(self) -> np.ndarray:
         """(N, 2) bool: each rod's force at or above the contact threshold."""

@@ -52,6 +52,16 @@ def test_identified_noise_matches_the_synthetic_sensors(noise):
     assert np.all(np.linalg.eigvalsh(noise.stationary_free) > 0)  # floored, not singular
 
 
+def test_default_noise_is_the_identified_model():
+    noise = PushingNoise()
+    for name in ("motion", "contact", "vision", "stationary", "stationary_pushed",
+                 "stationary_free"):
+        assert np.all(np.linalg.eigvalsh(getattr(noise, name)) > 0)
+    assert 0.5 < noise.c_scale < 1.2
+    assert noise.stationary_covariance(True, True) is noise.stationary_pushed
+    assert noise.stationary_covariance(True, False) is noise.stationary
+
+
 def test_noise_file_round_trip_and_errors(noise, tmp_path):
     path = tmp_path / "noise.json"
     noise.save(path)
@@ -110,8 +120,8 @@ def test_bad_settings_are_refused():
     with pytest.raises(ValueError, match="batch or fluid"):
         SmootherSettings(relinearization="sometimes")
     with pytest.raises(ValueError, match="contact-aware"):
-        VisuoTactileSmoother(RECT1, PushingNoise(), SmootherSettings(stationary="contact-aware"),
-                             rod_radius_m=0.003)
+        VisuoTactileSmoother(RECT1, PushingNoise(stationary_pushed=None, stationary_free=None),
+                             SmootherSettings(stationary="contact-aware"), rod_radius_m=0.003)
     with pytest.raises(RuntimeError, match="start"):
         VisuoTactileSmoother(RECT1, PushingNoise(), rod_radius_m=0.003).step(
             np.zeros((2, 2)), np.zeros((2, 2)), np.zeros(2, bool), None)
