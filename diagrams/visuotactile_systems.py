@@ -201,6 +201,7 @@ class PoseOutlines(LeafSystem):
         self._estimate = self.DeclareVectorInputPort("estimate", 3)
         self._camera = self.DeclareVectorInputPort("camera", CAMERA_SIZE)
         self.DeclarePeriodicPublishEvent(period_s, 0.0, self._draw)
+        self.DeclareForcedPublishEvent(self._draw)
 
     def _draw(self, context) -> EventStatus:
         t = context.get_time()

@@ -90,3 +90,26 @@ def test_cli_simulates_a_log_and_estimates_it(tmp_path, capsys):
     table = np.loadtxt(estimates, delimiter=",", skiprows=1)
     assert table.shape == (len(np.arange(log.t[0], log.t[-1] + 1e-9, 0.01)), 4)
     assert main(["push", "estimate", str(tmp_path / "missing.csv")]) == 2
+
+
+def test_outlines_follow_the_estimate_and_hide_an_occluded_camera_pose():
+    from pydrake.geometry import Meshcat
+
+    from diagrams.visuotactile_systems import PoseOutlines
+
+    meshcat = Meshcat()
+    system = PoseOutlines(meshcat, RECT1.footprint(), height_m=0.015)
+    context = system.CreateDefaultContext()
+    estimate = system.GetInputPort("estimate")
+    camera = system.GetInputPort("camera")
+    estimate.FixValue(context, [0.1, 0.2, 0.3])
+    camera.FixValue(context, [0.0, np.nan, np.nan, np.nan, 0.0])
+    system.ForcedPublish(context)
+    assert meshcat.HasPath("/pusher/estimate") and meshcat.HasPath("/pusher/camera")
+    first = meshcat._GetPackedTransform("/pusher/estimate")
+    hidden = meshcat._GetPackedProperty("/pusher/camera", "visible")
+    estimate.FixValue(context, [0.2, 0.2, 0.3])
+    camera.FixValue(context, [0.0, 0.0, 0.0, 0.0, 1.0])
+    system.ForcedPublish(context)
+    assert meshcat._GetPackedTransform("/pusher/estimate") != first
+    assert meshcat._GetPackedProperty("/pusher/camera", "visible") != hidden
