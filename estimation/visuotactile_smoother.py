@@ -9,8 +9,19 @@ One ``Pose2`` per estimator step (100 Hz). Each step adds (sec. IV-A, Fig. 3):
 - one contact cost per rod in contact now;
 - the vision cost, Huber-robust, when a camera pose arrived.
 
-The costs are :mod:`estimation.pushing_costs` wrapped as ``gtsam.CustomFactor`` with their
-analytic Jacobians. GTSAM is the maintained iSAM2 implementation (Kaess et al.); we use it
+The motion and contact costs are :mod:`estimation.pushing_costs` wrapped as
+``gtsam.CustomFactor`` with their analytic Jacobians. The stationary and vision costs are
+GTSAM's own ``BetweenFactorPose2`` and ``PriorFactorPose2``, whose residual is the
+difference in the first pose's frame (``Logmap(a^-1 b)``) rather than eq. 4's world frame;
+with the covariance turned into that frame when the factor is made (by the previous pose's
+estimated heading, or the camera's measured one), the two costs agree to first order.
+Measured: on the simulated rig, whose identified covariances are nearly isotropic in x, y,
+estimates differ by at most 0.6 mm and 1.2 deg and the RMSE by under 1 %; with a strongly
+anisotropic stationary covariance and an object that turns after its factors were made
+(the tests' straight-push log) they differ by up to 4 mm, the RMSE by 1 %. The C++
+factors linearise about 10x faster than Python callbacks, which halves a 300-pose batch
+relinearisation (36 to 18 ms) and keeps it within its budget. ``native_factors=False``
+uses eq. 4 verbatim. GTSAM is the maintained iSAM2 implementation (Kaess et al.); we use it
 rather than writing a sparse incremental QR of our own.
 
 History (sec. V-G): ``history`` poses are kept. ``relinearize_every`` steps after the last
@@ -51,7 +62,7 @@ from estimation.pushing_inputs import PushingSteps
 from estimation.pushing_noise import COSTS, PushingNoise
 
 #: iSAM2's relinearisation threshold in "fluid" mode (m, m, rad of a pose's update).
-FLUID_THRESHOLD = 1e-4
+FLUID_THRESHOLD = 1e-3
 
 
 @dataclass(frozen=True)
@@ -66,6 +77,9 @@ class SmootherSettings:
         stationary: ``"pooled"`` (seed 003: one covariance for every step) or
             ``"contact-aware"`` (the covariance of pushed steps when a rod touches at either
             end of the step, of free steps otherwise; needs a noise model that has them).
+        native_factors: the stationary and vision costs as GTSAM's C++ ``BetweenFactorPose2``
+            and ``PriorFactorPose2`` (default), or as Python ``CustomFactor`` s of eq. 4's
+            world-frame residuals (the faithful form; about 10x slower to linearise).
         c_m: the limit surface's c (m); ``None``: the noise model's (its ``c_scale`` times
             the outline's uniform-pressure value).
     """
@@ -77,6 +91,7 @@ class SmootherSettings:
     weak_prior_sigma: tuple[float, float, float] = (0.05, 0.05, 0.5)
     costs: tuple[str, ...] = COSTS
     stationary: str = "pooled"
+    native_factors: bool = True
     c_m: float | None = None
 
     def __post_init__(self) -> None:
@@ -128,6 +143,9 @@ class VisuoTactileSmoother:
                              "stationary_pushed and stationary_free")
         self._stationary_models = {pushed: gtsam.noiseModel.Gaussian.Covariance(
             noise.stationary_covariance(pushed, aware)) for pushed in (False, True)}
+        self._stationary_covariances = {pushed: noise.stationary_covariance(pushed, aware)
+                                        for pushed in (False, True)}
+        self._huber = gtsam.noiseModel.mEstimator.Huber.Create(noise.vision_huber_k)
         self._vision_cov = noise.vision
         self._steps: deque[tuple[int, list, list]] = deque()  # (k, own factors, linking)
         self._k = -1
@@ -146,7 +164,7 @@ class VisuoTactileSmoother:
         params = gtsam.ISAM2Params()
         if self.settings.relinearization == "batch":
             params.enableRelinearization = False
-        else:  # relinearise any pose that moved 0.1 mm or 0.1 mrad, at every update
+        else:  # relinearise any pose whose update exceeds 1 mm or 1 mrad, at every update
             params.setRelinearizeThreshold(FLUID_THRESHOLD)
             params.relinearizeSkip = 1
         return params
@@ -274,7 +292,12 @@ class VisuoTactileSmoother:
         self._isam.update(graph, values, constrainedKeys=newest)
 
     # -- factors
-    def _stationary(self, k: int, pushed: bool) -> gtsam.CustomFactor:
+    def _stationary(self, k: int, pushed: bool):
+        if self.settings.native_factors:
+            covariance = _rotated(self._stationary_covariances[pushed], self._estimate[2])
+            return gtsam.BetweenFactorPose2(X(k - 1), X(k), gtsam.Pose2(),
+                                            gtsam.noiseModel.Gaussian.Covariance(covariance))
+
         def error(this, values, H):
             a, b = _pose(values, this.keys()[0]), _pose(values, this.keys()[1])
             r, J1, J2 = stationary_residual(a, b)
@@ -305,8 +328,13 @@ class VisuoTactileSmoother:
             return r
         return gtsam.CustomFactor(self._models["contact"], [X(k)], error)
 
-    def _vision(self, k: int, measured: np.ndarray) -> gtsam.CustomFactor:
+    def _vision(self, k: int, measured: np.ndarray):
         measured = np.array(measured)
+        if self.settings.native_factors:
+            model = gtsam.noiseModel.Robust.Create(self._huber, gtsam.noiseModel.Gaussian
+                                                   .Covariance(_rotated(self._vision_cov,
+                                                                        measured[2])))
+            return gtsam.PriorFactorPose2(X(k), gtsam.Pose2(*measured), model)
 
         def error(this, values, H):
             r, J = vision_residual(_pose(values, this.keys()[0]), measured)
@@ -314,3 +342,12 @@ class VisuoTactileSmoother:
                 H[0] = J
             return r
         return gtsam.CustomFactor(self._models["vision"], [X(k)], error)
+
+
+def _rotated(covariance: np.ndarray, theta: float) -> np.ndarray:
+    """A world-frame pose covariance (3, 3) expressed in a frame turned by ``theta``: the
+    frame of GTSAM's Pose2 differences, ``Logmap(a^-1 b) ~ [R(theta_a)^T (p_b - p_a),
+    theta_b - theta_a]``."""
+    c, s = np.cos(theta), np.sin(theta)
+    B = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    return B @ covariance @ B.T

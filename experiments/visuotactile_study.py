@@ -22,6 +22,7 @@ surface). Simulated logs are kept in ``DIR/logs/`` and reused by later parts.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import time
 import zlib
@@ -311,9 +312,13 @@ def run_study(part: str, settings: VisuotactileSettings, out: Path,
 
 
 def _merge(path: Path, part: str, summary: dict) -> None:
-    data = json.loads(path.read_text()) if path.is_file() else {}
-    data[part] = summary
-    path.write_text(json.dumps(data, indent=2, default=_plain))
+    """Add one part to ``summary.json``, under a lock: parts may run as separate processes
+    into one directory."""
+    with open(path.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        data = json.loads(path.read_text()) if path.is_file() else {}
+        data[part] = summary
+        path.write_text(json.dumps(data, indent=2, default=_plain))
 
 
 def _plain(value):
