@@ -63,12 +63,6 @@ def closest_boundary_point(outline: Outline | np.ndarray, q: np.ndarray):
     return np.array([ax, ay]), dA, sd, np.array([gx, gy])
 
 
-def contact_point(rod: np.ndarray, force: np.ndarray, radius: float) -> np.ndarray:
-    """(2,) the sensed contact point: the rod centre moved by its radius along the force
-    it applies to the object (seed 003 sec. IV-C; force and contact normal taken as one)."""
-    return rod + radius * force / np.linalg.norm(force)
-
-
 def contact_residual(pose: np.ndarray, rod: np.ndarray, force: np.ndarray, radius: float,
                      polygon: Outline | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Seed 003 eq. 3 for one rod in contact.
@@ -92,18 +86,11 @@ def contact_residual(pose: np.ndarray, rod: np.ndarray, force: np.ndarray, radiu
                            polygon.edges, polygon.length2)
 
 
-def motion_terms(rods: np.ndarray, forces: np.ndarray, radius: float
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """The pushing inputs of the motion cost from the rods in contact.
-
-    Args:
-        rods: (K, 2) centres (m). forces: (K, 2) forces on the object (N). radius: m.
-
-    Returns:
-        (total force (2,) N, contact points (K, 2) m).
-    """
-    points = rods + radius * forces / np.linalg.norm(forces, axis=1, keepdims=True)
-    return forces.sum(axis=0), points
+def contact_points(rods: np.ndarray, forces: np.ndarray, radius: float) -> np.ndarray:
+    """(K, 2) the sensed contact points (m, world) of rods (K, 2) in contact, each the rod
+    centre moved by ``radius`` along the force (K, 2) it applies to the object (seed 003
+    sec. IV-C: the force and the contact normal taken as one)."""
+    return rods + radius * forces / np.linalg.norm(forces, axis=1, keepdims=True)
 
 
 def motion_residual(previous: np.ndarray, current: np.ndarray, forces: np.ndarray,

@@ -19,9 +19,9 @@ import numpy as np
 
 from estimation.pushing_costs import (
     Outline,
+    contact_points,
     contact_residual,
     motion_residual,
-    motion_terms,
     vision_residual,
 )
 from estimation.pushing_inputs import PushingSteps
@@ -88,7 +88,7 @@ class PushingEKF:
         rows, jacobians, blocks = [], [], []
         if previous_inputs is not None and previous_inputs[2].any():
             touching = previous_inputs[2]
-            _, points = motion_terms(previous_inputs[0][touching],
+            points = contact_points(previous_inputs[0][touching],
                                      previous_inputs[1][touching], self.radius)
             r, _, J = motion_residual(previous, prior, previous_inputs[1][touching], points,
                                       self.c)

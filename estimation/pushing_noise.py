@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from estimation.pushing_costs import (
+    contact_points,
     contact_residual,
     limit_surface_c,
     motion_residual,
-    motion_terms,
     stationary_residual,
     vision_residual,
 )
@@ -185,7 +185,7 @@ def residuals_at_truth(steps: PushingSteps, polygon: np.ndarray, c: float) -> Re
         pushed.append(bool(steps.contact[k - 1].any() or steps.contact[k].any()))
         touching = steps.contact[k - 1]
         if touching.any():
-            _, points = motion_terms(steps.rods[k - 1, touching], steps.forces[k - 1, touching],
+            points = contact_points(steps.rods[k - 1, touching], steps.forces[k - 1, touching],
                                      radius)
             motion.append(motion_residual(truth[k - 1], truth[k], steps.forces[k - 1, touching],
                                           points, c)[0])
@@ -209,7 +209,7 @@ def fit_limit_surface_c(steps: list[PushingSteps]) -> float:
             if not touching.any():
                 continue
             forces = run.forces[k - 1, touching]
-            _, points = motion_terms(run.rods[k - 1, touching], forces, radius)
+            points = contact_points(run.rods[k - 1, touching], forces, radius)
             arms = points - truth[k - 1, :2]
             m = float(np.sum(arms[:, 0] * forces[:, 1] - arms[:, 1] * forces[:, 0]))
             dp = truth[k, :2] - truth[k - 1, :2]

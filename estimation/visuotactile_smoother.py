@@ -52,9 +52,9 @@ from gtsam.symbol_shorthand import X
 
 from estimation.pushing_costs import (
     Outline,
+    contact_points,
     contact_residual,
     motion_residual,
-    motion_terms,
     stationary_residual,
     vision_residual,
 )
@@ -209,7 +209,7 @@ class VisuoTactileSmoother:
             linking.append(self._stationary(k, pushed))
         if "motion" in costs and previous is not None and previous[2].any():
             touching = previous[2]
-            _, points = motion_terms(previous[0][touching], previous[1][touching], self.radius)
+            points = contact_points(previous[0][touching], previous[1][touching], self.radius)
             linking.append(self._motion(k, previous[1][touching], points))
         if "contact" in costs:
             for rod in np.flatnonzero(contact):
