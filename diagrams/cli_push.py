@@ -44,7 +44,10 @@ def add_commands(commands, studies, bench_kinds) -> None:
                      help="noise.json from 'experiment visuotactile --part noise' "
                           "(default: identified from this log's ground truth)")
     est.add_argument("--history", type=int, default=200)
-    est.add_argument("--stationary", default="pooled", choices=["pooled", "contact-aware"])
+    est.add_argument("--paper", action="store_true",
+                     help="seed 003's scheme exactly (batch relinearisation, pooled "
+                          "stationary prior) instead of the recommended fluid "
+                          "relinearisation and contact-aware prior")
     est.add_argument("--out", type=Path, default=None, help="estimates CSV to write")
 
     study = studies.add_parser("visuotactile",
@@ -125,7 +128,11 @@ def _estimate(args) -> int:
         identify,
         residuals_at_truth,
     )
-    from estimation.visuotactile_smoother import SmootherSettings, VisuoTactileSmoother
+    from estimation.visuotactile_smoother import (
+        SmootherSettings,
+        VisuoTactileSmoother,
+        recommended_settings,
+    )
     from models.objects import ObjectSpec
     from models.push_log import PushLog
 
@@ -145,7 +152,8 @@ def _estimate(args) -> int:
     else:
         raise ValueError(f"{args.log} has no ground truth to identify the noise from; "
                          "pass --noise noise.json")
-    settings = SmootherSettings(history=args.history, stationary=args.stationary)
+    settings = (SmootherSettings(history=args.history) if args.paper
+                else recommended_settings(args.history))
     smoother = VisuoTactileSmoother(polygon, noise, settings, rod_radius_m=steps.rod_radius_m)
     estimates = smoother.run(steps)
     updates = np.array(smoother.update_seconds) * 1e3

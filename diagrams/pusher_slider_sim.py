@@ -31,13 +31,15 @@ from diagrams.visuotactile_systems import (
     unpack_force_sample,
 )
 from estimation.pushing_noise import PushingNoise
-from estimation.visuotactile_smoother import SmootherSettings
+from estimation.visuotactile_smoother import SmootherSettings, recommended_settings
 from models.objects import ObjectSpec
 from models.pose import transform_to_planar
 from models.push_log import PushLog
 from models.push_procedure import Stroke, stroke_waypoints
 from models.pusher_slider import PusherSliderRig, PusherSliderWorld, add_pusher_slider
 
+#: The in-loop estimator's default: :func:`recommended_settings` at 200 steps.
+RECOMMENDED = recommended_settings()
 #: Plant step (s). Steel (1e8 Pa) against rigid rods needs a short step; 2 ms gives two
 #: steps per force sample.
 DEFAULT_TIME_STEP_S = 0.002
@@ -57,7 +59,7 @@ class PusherSliderDiagram:
 def build_pusher_slider_diagram(rig: PusherSliderRig, object_spec: ObjectSpec, *,
                                 seed: int = 0, time_step_s: float = DEFAULT_TIME_STEP_S,
                                 estimator_noise: PushingNoise | None = None,
-                                estimator_settings: SmootherSettings = SmootherSettings(),
+                                estimator_settings: SmootherSettings = RECOMMENDED,
                                 meshcat: Meshcat | None = None) -> PusherSliderDiagram:
     """Plant, sensors, and (when ``estimator_noise`` is given) the estimator; Meshcat
     drawing when ``meshcat`` is given."""
@@ -118,7 +120,7 @@ def simulate_push(rig: PusherSliderRig, object_spec: ObjectSpec, procedure: list
                   seed: int = 0, object_name: str = "", initial_pose: np.ndarray | None = None,
                   time_step_s: float = DEFAULT_TIME_STEP_S,
                   estimator_noise: PushingNoise | None = None,
-                  estimator_settings: SmootherSettings = SmootherSettings(),
+                  estimator_settings: SmootherSettings = RECOMMENDED,
                   meshcat: Meshcat | None = None, progress: bool = False) -> PushRun:
     """Run ``procedure`` on ``object_spec`` and record the sensors (and the estimator).
 

@@ -22,7 +22,11 @@ from pydrake.systems.framework import EventStatus, LeafSystem
 
 from diagrams.tactile_sensor import contact_pairs_by_patch
 from estimation.pushing_noise import PushingNoise
-from estimation.visuotactile_smoother import SmootherSettings, VisuoTactileSmoother
+from estimation.visuotactile_smoother import (
+    SmootherSettings,
+    VisuoTactileSmoother,
+    recommended_settings,
+)
 from models.pose import planar_to_transform, transform_to_planar
 from models.pusher_sensors import Camera, sense_forces
 from models.pusher_slider import PusherSliderWorld
@@ -131,14 +135,16 @@ class VisuoTactileEstimator(LeafSystem):
 
     Args:
         polygon: (V, 2) the object's outline (m). noise: the costs' covariances.
-        settings: the smoother's settings. rod_radius_m, contact_threshold_n: the rig's.
+        settings: the smoother's settings (default: ``recommended_settings()``).
+        rod_radius_m, contact_threshold_n: the rig's.
         period_s: update period (s).
     """
 
     def __init__(self, polygon: np.ndarray, noise: PushingNoise, *, rod_radius_m: float,
-                 contact_threshold_n: float, settings: SmootherSettings = SmootherSettings(),
+                 contact_threshold_n: float, settings: SmootherSettings | None = None,
                  period_s: float = 0.01):
         super().__init__()
+        settings = settings or recommended_settings()
         self._make = lambda: VisuoTactileSmoother(polygon, noise, settings,
                                                   rod_radius_m=rod_radius_m)
         self._threshold = contact_threshold_n

@@ -108,6 +108,14 @@ class SmootherSettings:
             raise ValueError(f"unknown costs {sorted(unknown)}; allowed: {', '.join(COSTS)}")
 
 
+def recommended_settings(history: int = 200) -> SmootherSettings:
+    """Beyond the paper: iSAM2's fluid relinearisation and the contact-aware stationary
+    prior (``cmanip experiment visuotactile --part methods`` measures both against the
+    paper's scheme, which :class:`SmootherSettings` defaults to)."""
+    return SmootherSettings(history=history, relinearization="fluid",
+                            stationary="contact-aware")
+
+
 def _pose(values: gtsam.Values, key: int) -> np.ndarray:
     p = values.atPose2(key)
     return np.array([p.x(), p.y(), p.theta()])
