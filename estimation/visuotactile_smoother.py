@@ -36,8 +36,10 @@ fresh iSAM2. With history 200 and every 100 steps this is the paper's scheme exa
 - ``relinearization="fluid"``: iSAM2's own relinearisation of poses that moved (beyond the
   paper).
 
-The prior on the oldest kept pose is ``"weak"`` in the paper; ``"marginal"`` (default) uses
-that pose's marginal covariance, which keeps what the dropped steps knew.
+The prior on the oldest kept pose is ``"weak"`` in the paper; ``"marginal"`` (default) is
+what the dropped steps knew about it: their factors linearised at the current estimate
+with the dropped poses eliminated (:meth:`VisuoTactileSmoother._marginal_prior`), the
+standard fixed-lag marginalisation.
 """
 
 from __future__ import annotations
@@ -77,6 +79,9 @@ class SmootherSettings:
         stationary: ``"pooled"`` (seed 003: one covariance for every step) or
             ``"contact-aware"`` (the covariance of pushed steps when a rod touches at either
             end of the step, of free steps otherwise; needs a noise model that has them).
+        extra_iterations: further iSAM2 updates without new factors after each step (each
+            one more Gauss-Newton step; with ``"fluid"`` relinearisation it relinearises
+            the newest pose at its new estimate). 0 in the paper.
         native_factors: the stationary and vision costs as GTSAM's C++ ``BetweenFactorPose2``
             and ``PriorFactorPose2`` (default), or as Python ``CustomFactor`` s of eq. 4's
             world-frame residuals (the faithful form; about 10x slower to linearise).
@@ -91,12 +96,14 @@ class SmootherSettings:
     weak_prior_sigma: tuple[float, float, float] = (0.05, 0.05, 0.5)
     costs: tuple[str, ...] = COSTS
     stationary: str = "pooled"
+    extra_iterations: int = 0
     native_factors: bool = True
     c_m: float | None = None
 
     def __post_init__(self) -> None:
-        if self.history < 1 or self.relinearize_every < 1:
-            raise ValueError("history and relinearize_every must be >= 1")
+        if self.history < 1 or self.relinearize_every < 1 or self.extra_iterations < 0:
+            raise ValueError("history and relinearize_every must be >= 1, extra_iterations "
+                             ">= 0")
         if self.relinearization not in ("batch", "fluid"):
             raise ValueError(f"relinearization={self.relinearization!r}: batch or fluid")
         if self.drop_prior not in ("marginal", "weak"):
@@ -186,7 +193,7 @@ class VisuoTactileSmoother:
         prior = gtsam.PriorFactorPose2(X(0), gtsam.Pose2(*pose), gtsam.noiseModel.Gaussian
                                        .Covariance(self._vision_cov if covariance is None
                                                    else covariance))
-        self._prior = prior
+        self._prior = [prior]
         graph = gtsam.NonlinearFactorGraph()
         graph.add(prior)
         values = gtsam.Values()
@@ -242,6 +249,8 @@ class VisuoTactileSmoother:
             self.rebuild_seconds.append(time.perf_counter() - rebuild)
         else:
             self._isam.update(graph, values)
+            for _ in range(self.settings.extra_iterations):
+                self._isam.update()
         estimate = self._isam.calculateEstimatePose2(X(k))
         self._estimate = np.array([estimate.x(), estimate.y(), estimate.theta()])
         self.update_seconds.append(time.perf_counter() - begin)
@@ -268,7 +277,7 @@ class VisuoTactileSmoother:
 
     # -- window
     def _rebuild(self) -> None:
-        """Drop the oldest chunk if the window is full, then relinearise it in batch."""
+        """Drop the oldest poses if the window is full, then relinearise it in batch."""
         s = self.settings
         chunk = min(s.relinearize_every, s.history)
         estimate = self._isam.calculateEstimate()
@@ -277,16 +286,17 @@ class VisuoTactileSmoother:
             first = self._k - s.history + 1
         if first != self._first:
             if s.drop_prior == "marginal":
-                covariance = self._isam.marginalCovariance(X(first))
-                model = gtsam.noiseModel.Gaussian.Covariance(covariance)
+                self._prior = self._marginal_prior(first, estimate)
             else:
                 model = gtsam.noiseModel.Diagonal.Sigmas(np.array(s.weak_prior_sigma))
-            self._prior = gtsam.PriorFactorPose2(X(first), estimate.atPose2(X(first)), model)
+                self._prior = [gtsam.PriorFactorPose2(X(first), estimate.atPose2(X(first)),
+                                                      model)]
             while self._steps[0][0] < first:
                 self._steps.popleft()
             self._first = first
         graph = gtsam.NonlinearFactorGraph()
-        graph.add(self._prior)
+        for factor in self._prior:
+            graph.add(factor)
         values = gtsam.Values()
         for k, own, linking in self._steps:
             values.insert(X(k), estimate.atPose2(X(k)))
@@ -298,6 +308,38 @@ class VisuoTactileSmoother:
         newest.insert2(X(self._k), 1)
         self._isam = gtsam.ISAM2(self._params())
         self._isam.update(graph, values, constrainedKeys=newest)
+
+    def _marginal_prior(self, first: int, estimate: gtsam.Values) -> list:
+        """What the dropped steps knew about pose ``first``: the factors of the dropped
+        poses (with the previous prior, and the factors that link them to ``first``),
+        linearised at the current estimate, with the dropped poses eliminated (a Schur
+        complement), kept as linear factors on ``first``. The factors on ``first`` itself
+        stay in the window, so nothing is counted twice."""
+        dropped = gtsam.NonlinearFactorGraph()
+        for factor in self._prior:
+            dropped.add(factor)
+        keys = []
+        for k, own, linking in self._steps:
+            if k > first:
+                break
+            if k < first:
+                keys.append(X(k))
+                for factor in own:
+                    dropped.add(factor)
+            if k > self._first:
+                for factor in linking:
+                    dropped.add(factor)
+        values = gtsam.Values()
+        for key in keys + [X(first)]:
+            values.insert(key, estimate.atPose2(key))
+        ordering = gtsam.Ordering()
+        for key in keys:
+            ordering.push_back(key)
+        _, remaining = dropped.linearize(values).eliminatePartialMultifrontal(ordering)
+        at_first = gtsam.Values()
+        at_first.insert(X(first), estimate.atPose2(X(first)))
+        return [gtsam.LinearContainerFactor(remaining.at(i), at_first)
+                for i in range(remaining.size()) if remaining.at(i) is not None]
 
     # -- factors
     def _stationary(self, k: int, pushed: bool):
