@@ -145,22 +145,22 @@ class VisuoTactileSmoother:
         self.settings = settings
         self.radius = rod_radius_m
         self.c = settings.c_m if settings.c_m is not None else noise.limit_surface_c(self.polygon)
-        self._models = {
-            "motion": gtsam.noiseModel.Gaussian.Covariance(noise.motion),
-            "contact": gtsam.noiseModel.Gaussian.Covariance(noise.contact),
-            "vision": gtsam.noiseModel.Robust.Create(
-                gtsam.noiseModel.mEstimator.Huber.Create(noise.vision_huber_k),
-                gtsam.noiseModel.Gaussian.Covariance(noise.vision)),
-        }
         aware = settings.stationary == "contact-aware"
         if aware and noise.stationary_pushed is None:
             raise ValueError("a contact-aware stationary prior needs a noise model with "
                              "stationary_pushed and stationary_free")
-        self._stationary_models = {pushed: gtsam.noiseModel.Gaussian.Covariance(
-            noise.stationary_covariance(pushed, aware)) for pushed in (False, True)}
+        self._huber = gtsam.noiseModel.mEstimator.Huber.Create(noise.vision_huber_k)
+        self._models = {
+            "motion": gtsam.noiseModel.Gaussian.Covariance(noise.motion),
+            "contact": gtsam.noiseModel.Gaussian.Covariance(noise.contact),
+            "vision": gtsam.noiseModel.Robust.Create(
+                self._huber, gtsam.noiseModel.Gaussian.Covariance(noise.vision)),
+        }
         self._stationary_covariances = {pushed: noise.stationary_covariance(pushed, aware)
                                         for pushed in (False, True)}
-        self._huber = gtsam.noiseModel.mEstimator.Huber.Create(noise.vision_huber_k)
+        self._stationary_models = {pushed: gtsam.noiseModel.Gaussian.Covariance(covariance)
+                                   for pushed, covariance
+                                   in self._stationary_covariances.items()}
         self._vision_cov = noise.vision
         self._steps: deque[tuple[int, list, list]] = deque()  # (k, own factors, linking)
         self._k = -1
