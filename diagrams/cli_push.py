@@ -45,9 +45,8 @@ def add_commands(commands, studies, bench_kinds) -> None:
                           "(default: identified from this log's ground truth)")
     est.add_argument("--history", type=int, default=200)
     est.add_argument("--paper", action="store_true",
-                     help="seed 003's scheme exactly (batch relinearisation, pooled "
-                          "stationary prior) instead of the recommended fluid "
-                          "relinearisation and contact-aware prior")
+                     help="seed 003's pooled stationary prior instead of the recommended "
+                          "contact-aware one")
     est.add_argument("--out", type=Path, default=None, help="estimates CSV to write")
 
     study = studies.add_parser("visuotactile",

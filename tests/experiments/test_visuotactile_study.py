@@ -25,13 +25,13 @@ def _noise(logs):
 def test_compare_summarises_every_method_and_plots(synthetic_push_factory, tmp_path):
     logs = [synthetic_push_factory(seed).head(400) for seed in (11, 12)]
     noise = _noise([synthetic_push_factory(99)])
-    keep = {"vision only", "EKF", "iSAM 200-step", "iSAM 200-step, fluid + contact-aware (ours)"}
+    keep = {"vision only", "EKF", "iSAM 200-step", "iSAM 200-step, contact-aware prior (ours)"}
     methods = tuple(m for m in paper_methods(200) if m.label in keep)
     results, traces = compare(methods, logs, RECT1, noise, progress=False)
     assert set(results) == {m.label for m in methods}
     for entry in results.values():
         assert entry["rmse_mm"]["mean"] > 0 and len(entry["per_trial_mm"]) == 2
-    ours = results["iSAM 200-step, fluid + contact-aware (ours)"]
+    ours = results["iSAM 200-step, contact-aware prior (ours)"]
     assert ours["rmse_mm"]["mean"] < results["vision only"]["rmse_mm"]["mean"] / 2
     assert "update_ms_mean" in results["iSAM 200-step"]["timing"]
     names = plots.methods_figures(results, traces, PAPER_TABLE_II, tmp_path)
