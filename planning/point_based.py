@@ -9,12 +9,8 @@
   observation with the largest weighted excess gap, ``p(o | b, a) (gap(b') - eps / g^t)``;
   stop when the gap there is below ``eps / g^t``; back up both bounds on the way back. The
   target ``eps`` follows the root gap (a fraction of it), so the solver stays anytime.
-- Pruning: alpha-vectors that are best at none of the visited beliefs are dropped once the
-  new ones since the last pruning number ``prune_every`` and as many as that pruning kept
-  (so the set may double between prunings: pruning costs visited x alphas, and an alpha
-  dropped too early is rebuilt later). Measured on RockSample(7,8), lower bound at 10 /
-  30 / 60 s: every 200 new, 20.42 / 20.97 / 21.15; every 1000 new, 20.77 / 20.82 /
-  21.06; doubling with a floor of 1000 (default), 20.77 / 20.93 / 21.15.
+- Pruning: alpha-vectors that are best at none of the visited beliefs are dropped every
+  ``prune_every`` backups.
 
 Inside the search a belief is its support and the probabilities there; predictions gather
 only the rows of T in the support, and only the chosen action's alpha-vector is built over
@@ -124,12 +120,11 @@ class PointBasedSolver:
         pomdp: the model.
         gap_fraction: each trial's target precision, as a fraction of the root gap.
         max_depth: deepest belief a trial visits.
-        prune_every: prune the alpha-vectors after at least this many new ones (and at
-            least as many as the last pruning kept).
+        prune_every: prune the alpha-vectors after this many new ones.
     """
 
     def __init__(self, pomdp: TabularPOMDP, *, gap_fraction: float = 0.5,
-                 max_depth: int = 250, prune_every: int = 1000):
+                 max_depth: int = 250, prune_every: int = 200):
         self.m = pomdp
         S, A, n_obs = pomdp.shape
         self.gamma = pomdp.discount
@@ -161,7 +156,6 @@ class PointBasedSolver:
         self.points = _UpperPoints()
         self.visited: list[tuple[np.ndarray, np.ndarray]] = []  # (support, probabilities)
         self._new_alphas = 0
-        self._kept_at_prune = 0  # alphas kept by the last pruning
         self.report = SolverReport()
 
     @property
@@ -276,7 +270,7 @@ class PointBasedSolver:
         self._add_alpha(alpha, best_action)
         self.report.backups += 1
         self._new_alphas += 1
-        if self._new_alphas >= max(self.prune_every, self._kept_at_prune):
+        if self._new_alphas >= self.prune_every:
             self._prune()
 
     def _backup_upper(self, support, probs, kids, q: np.ndarray, explored: int) -> None:
@@ -304,7 +298,6 @@ class PointBasedSolver:
         index = np.array(sorted(keep))
         kept_alphas, kept_actions = self.alphas[index].copy(), self.alpha_actions[index].copy()
         self._alpha_count = len(index)
-        self._kept_at_prune = len(index)
         self._alpha_buffer[:len(index)] = kept_alphas
         self._action_buffer[:len(index)] = kept_actions
 
