@@ -119,14 +119,8 @@ def _simulate(args) -> int:
 
 
 def _estimate(args) -> int:
-    from estimation.pushing_costs import limit_surface_c
     from estimation.pushing_inputs import PushingSteps, rmse
-    from estimation.pushing_noise import (
-        PushingNoise,
-        fit_limit_surface_c,
-        identify,
-        residuals_at_truth,
-    )
+    from estimation.pushing_noise import PushingNoise, identify_from_runs
     from estimation.visuotactile_smoother import (
         SmootherSettings,
         VisuoTactileSmoother,
@@ -143,9 +137,7 @@ def _estimate(args) -> int:
     if args.noise:
         noise = PushingNoise.load(args.noise)
     elif has_truth:
-        c = fit_limit_surface_c([steps])
-        noise = identify([residuals_at_truth(steps, polygon, c)],
-                         c_scale=c / limit_surface_c(polygon))
+        noise, _, _ = identify_from_runs([steps], polygon)
         print("noise identified from this log's ground truth (pass --noise to use a model "
               "identified elsewhere)")
     else:

@@ -126,19 +126,15 @@ class PushingEKF:
         """(K, 3) estimates, nan before the first camera pose (or from step 0 at
         ``start``)."""
         out = np.full((len(steps), 3), np.nan)
-        previous = None
-        for k in range(len(steps)):
-            if self.mean is None:
-                if start is not None:
-                    self.start(start)
-                elif steps.vision_ok[k]:
-                    self.start(steps.vision[k])
-                else:
-                    continue
-                out[k] = self.mean
-            else:
-                vision = steps.vision[k] if steps.vision_ok[k] else None
-                out[k] = self.step(steps.rods[k], steps.forces[k], steps.contact[k], vision,
-                                   previous)
-            previous = (steps.rods[k], steps.forces[k], steps.contact[k])
+        begin = steps.start(start)
+        if begin is None:
+            return out
+        first, pose = begin
+        self.start(pose)
+        out[first] = self.mean
+        for k in range(first + 1, len(steps)):
+            vision = steps.vision[k] if steps.vision_ok[k] else None
+            previous = (steps.rods[k - 1], steps.forces[k - 1], steps.contact[k - 1])
+            out[k] = self.step(steps.rods[k], steps.forces[k], steps.contact[k], vision,
+                               previous)
         return out

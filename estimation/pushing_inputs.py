@@ -41,6 +41,14 @@ class PushingSteps:
     def __len__(self) -> int:
         return len(self.t)
 
+    def start(self, pose: np.ndarray | None = None) -> tuple[int, np.ndarray] | None:
+        """Where an estimator begins: step 0 at ``pose`` if one is given, else the first
+        step with a camera pose and that pose; ``None`` if the camera never saw it."""
+        if pose is not None:
+            return 0, np.asarray(pose, dtype=float)
+        frames = np.flatnonzero(self.vision_ok)
+        return (int(frames[0]), self.vision[frames[0]]) if len(frames) else None
+
     def head(self, n: int) -> PushingSteps:
         """The first ``n`` steps."""
         return replace(self, **{f.name: getattr(self, f.name)[:n] for f in fields(self)

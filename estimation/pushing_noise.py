@@ -222,6 +222,20 @@ def fit_limit_surface_c(steps: list[PushingSteps]) -> float:
     return float(np.sqrt(numerator / denominator))
 
 
+def identify_from_runs(runs: list[PushingSteps], polygon: np.ndarray
+                       ) -> tuple[PushingNoise, list[Residuals], float]:
+    """Everything sec. V-B identifies from runs with ground truth of one object: the limit
+    surface's c (:func:`fit_limit_surface_c`), then every cost's residuals at the truth
+    and their covariances.
+
+    Returns:
+        (the noise model, each run's residuals, c in m).
+    """
+    c = fit_limit_surface_c(runs)
+    residuals = [residuals_at_truth(run, polygon, c) for run in runs]
+    return identify(residuals, c_scale=c / limit_surface_c(polygon)), residuals, c
+
+
 def identify(residuals: list[Residuals], *, vision_huber_k: float = 1.345,
              c_scale: float = 1.0) -> PushingNoise:
     """Second moments (about zero) of the pooled residuals of several runs (computed with

@@ -261,17 +261,14 @@ class VisuoTactileSmoother:
         """Estimate every step of ``steps``; (K, 3), nan before the first camera pose (or
         from step 0 at ``start``)."""
         out = np.full((len(steps), 3), np.nan)
-        for k in range(len(steps)):
-            if not self.started:
-                if start is not None:
-                    self.start(start)
-                elif steps.vision_ok[k]:
-                    self.start(steps.vision[k])
-                else:
-                    continue
-                self._previous_inputs = (steps.rods[k], steps.forces[k], steps.contact[k])
-                out[k] = self._estimate
-                continue
+        begin = steps.start(start)
+        if begin is None:
+            return out
+        first, pose = begin
+        self.start(pose)
+        self._previous_inputs = (steps.rods[first], steps.forces[first], steps.contact[first])
+        out[first] = self._estimate
+        for k in range(first + 1, len(steps)):
             vision = steps.vision[k] if steps.vision_ok[k] else None
             out[k] = self.step(steps.rods[k], steps.forces[k], steps.contact[k], vision)
         return out

@@ -16,10 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from estimation.pushing_costs import limit_surface_c
 from estimation.pushing_filters import PushingEKF
 from estimation.pushing_inputs import PushingSteps
-from estimation.pushing_noise import fit_limit_surface_c, identify, residuals_at_truth
+from estimation.pushing_noise import identify_from_runs
 from estimation.visuotactile_smoother import (
     SmootherSettings,
     VisuoTactileSmoother,
@@ -54,8 +53,7 @@ def run_visuotactile_bench(log_path: Path | None = None, seed: int = 0,
     log = _log(log_path, seed)
     polygon = ObjectSpec.load(object_name if log_path else "rect1").footprint()
     steps = PushingSteps.from_log(log)
-    c = fit_limit_surface_c([steps])
-    noise = identify([residuals_at_truth(steps, polygon, c)], c_scale=c / limit_surface_c(polygon))
+    noise, _, _ = identify_from_runs([steps], polygon)
     report: dict = {"steps": len(steps), "log_seconds": float(log.t[-1] - log.t[0])}
     for label, settings in (("", SmootherSettings()),
                             ("_ours", recommended_settings())):

@@ -35,12 +35,7 @@ from tqdm import tqdm
 from estimation.pushing_costs import limit_surface_c
 from estimation.pushing_filters import PushingEKF, vision_only
 from estimation.pushing_inputs import PushingSteps, rmse
-from estimation.pushing_noise import (
-    PushingNoise,
-    fit_limit_surface_c,
-    identify,
-    residuals_at_truth,
-)
+from estimation.pushing_noise import PushingNoise, identify_from_runs
 from estimation.visuotactile_smoother import (
     SmootherSettings,
     VisuoTactileSmoother,
@@ -227,13 +222,10 @@ def noise_model(settings: VisuotactileSettings, out: Path, progress: bool = True
     logs = [simulated_log(settings, "rect1", "plywood", i, out / "logs", training=True)
             for i in tqdm(range(settings.noise_trials), desc="training runs",
                           disable=not progress)]
-    polygon = ObjectSpec.load("rect1").footprint()
     runs = [PushingSteps.from_log(log) for log in logs]
-    c = fit_limit_surface_c(runs)
-    residuals = [residuals_at_truth(run, polygon, c) for run in runs]
+    noise, residuals, c = identify_from_runs(runs, ObjectSpec.load("rect1").footprint())
     if path.is_file():
         return PushingNoise.load(path), {"residuals": residuals, "c_m": c}
-    noise = identify(residuals, c_scale=c / limit_surface_c(polygon))
     out.mkdir(parents=True, exist_ok=True)
     noise.save(path)
     return noise, {"residuals": residuals, "c_m": c}

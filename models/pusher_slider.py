@@ -195,7 +195,7 @@ class PusherSliderRig:
         return rig
 
 
-def table_mu_for(pair_mu: float, other_mu: float, source: str = "rig") -> float:
+def mu_completing_pair(pair_mu: float, other_mu: float, source: str = "rig") -> float:
     """The coefficient a geometry needs so that Drake's combination with ``other_mu``
     (``2 a b / (a + b)``) gives ``pair_mu``.
 
@@ -239,8 +239,8 @@ def add_pusher_slider(plant: MultibodyPlant, rig: PusherSliderRig,
                       object_spec: ObjectSpec) -> PusherSliderWorld:
     """Add table, carriage with rods and the object to an un-finalised plant."""
     mu_o = object_spec.material.mu_dynamic
-    rod_mu = table_mu_for(rig.pusher_object_mu, mu_o, rig.source or "rig")
-    table_mu = table_mu_for(rig.surface_mu, mu_o, rig.source or "rig")
+    rod_mu = mu_completing_pair(rig.pusher_object_mu, mu_o, rig.source or "rig")
+    table_mu = mu_completing_pair(rig.surface_mu, mu_o, rig.source or "rig")
     table_material = ContactMaterial(mu_static=table_mu, mu_dynamic=table_mu,
                                      hydroelastic_modulus_pa=TABLE_MODULUS_PA)
     rod_material = ContactMaterial(mu_static=rod_mu, mu_dynamic=rod_mu,

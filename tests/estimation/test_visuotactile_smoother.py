@@ -4,14 +4,12 @@ its window, the EKF and vision baselines, and the noise identification."""
 import numpy as np
 import pytest
 
-from estimation.pushing_costs import limit_surface_c
 from estimation.pushing_filters import PushingEKF, vision_only
 from estimation.pushing_inputs import PushingSteps, rmse
 from estimation.pushing_noise import (
     PushingNoise,
     fit_limit_surface_c,
-    identify,
-    residuals_at_truth,
+    identify_from_runs,
 )
 from estimation.visuotactile_smoother import SmootherSettings, VisuoTactileSmoother
 from models.objects import ObjectSpec
@@ -26,8 +24,7 @@ def steps(synthetic_push_log):
 
 @pytest.fixture(scope="module")
 def noise(steps):
-    c = fit_limit_surface_c([steps])
-    return identify([residuals_at_truth(steps, RECT1, c)], c_scale=c / limit_surface_c(RECT1))
+    return identify_from_runs([steps], RECT1)[0]
 
 
 def test_steps_resample_the_log_at_100_hz(steps, synthetic_push_log):

@@ -5,9 +5,8 @@ import json
 import numpy as np
 
 from diagrams.cli import main
-from estimation.pushing_costs import limit_surface_c
 from estimation.pushing_inputs import PushingSteps
-from estimation.pushing_noise import fit_limit_surface_c, identify, residuals_at_truth
+from estimation.pushing_noise import identify_from_runs
 from experiments import visuotactile_plots as plots
 from experiments.visuotactile_study import PAPER_TABLE_II, Method, compare, paper_methods
 from models.objects import ObjectSpec
@@ -16,10 +15,7 @@ RECT1 = ObjectSpec.load("rect1").footprint()
 
 
 def _noise(logs):
-    runs = [PushingSteps.from_log(log) for log in logs]
-    c = fit_limit_surface_c(runs)
-    return identify([residuals_at_truth(r, RECT1, c) for r in runs],
-                    c_scale=c / limit_surface_c(RECT1))
+    return identify_from_runs([PushingSteps.from_log(log) for log in logs], RECT1)[0]
 
 
 def test_compare_summarises_every_method_and_plots(synthetic_push_factory, tmp_path):

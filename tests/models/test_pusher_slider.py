@@ -14,7 +14,7 @@ from models.config import ConfigError
 from models.objects import ObjectSpec
 from models.push_log import LogFormatError, PushLog
 from models.push_procedure import Stroke, random_procedure, standard_procedure, stroke_waypoints
-from models.pusher_slider import PusherSliderRig, occluders, table_mu_for
+from models.pusher_slider import PusherSliderRig, occluders, mu_completing_pair
 
 RECT1 = ObjectSpec.load("rect1").footprint()
 
@@ -44,13 +44,13 @@ def test_rig_file_errors_name_the_field(tmp_path):
 
 @pytest.mark.parametrize("pair", [0.15, 0.25, 0.35, 0.45])
 def test_table_friction_combines_to_the_pair_coefficient(pair):
-    mu_t = table_mu_for(pair, 0.25)
+    mu_t = mu_completing_pair(pair, 0.25)
     assert 2 * mu_t * 0.25 / (mu_t + 0.25) == pytest.approx(pair)
 
 
 def test_impossible_pair_friction_is_refused():
     with pytest.raises(ValueError, match="above 0.3"):
-        table_mu_for(0.6, 0.25)
+        mu_completing_pair(0.6, 0.25)
 
 
 def test_stroke_starts_behind_the_object_and_pushes_through_it():
