@@ -14,7 +14,7 @@ from models.config import ConfigError
 from models.objects import ObjectSpec
 from models.push_log import LogFormatError, PushLog
 from models.push_procedure import Stroke, random_procedure, standard_procedure, stroke_waypoints
-from models.pusher_slider import PusherSliderRig, occluders, mu_completing_pair
+from models.pusher_slider import PusherSliderRig, mu_completing_pair, occluders
 
 RECT1 = ObjectSpec.load("rect1").footprint()
 
