@@ -14,6 +14,9 @@ Subcommands:
     push       seed 003's pusher-slider: ``push simulate`` a procedure into a sensor log,
                ``push estimate`` any log (see :mod:`diagrams.cli_push`); its study is
                ``experiment visuotactile`` and its bench ``bench visuotactile``.
+    run        one closed-loop episode: HERB pushes an object into the goal by touch, in one
+               Drake diagram (see :mod:`diagrams.cli_closed_loop`); its study is
+               ``experiment closedloop``.
     scenes     list the built-in scenes, objects and tactile layouts.
 
 Studies (``experiments/``) are imported lazily, only by the subcommands that run them.
@@ -26,7 +29,7 @@ import json
 import sys
 from pathlib import Path
 
-from diagrams import cli_push
+from diagrams import cli_closed_loop, cli_push
 from models.config import ConfigError, builtin_names
 
 
@@ -124,12 +127,14 @@ def main(argv: list[str] | None = None) -> int:
 
     commands.add_parser("scenes", help="list built-in scenes, objects and tactile layouts")
     cli_push.add_commands(commands, studies, bench_kinds)
+    cli_closed_loop.add_commands(commands, studies)
 
     args = parser.parse_args(argv)
     try:
-        handled = cli_push.run(args)
-        if handled is not None:
-            return handled
+        for module in (cli_push, cli_closed_loop):
+            handled = module.run(args)
+            if handled is not None:
+                return handled
         if args.command == "simulate":
             return _simulate(args)
         if args.command == "bench" and args.bench == "timestep":

@@ -10,7 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
+from pydrake.geometry import (
+    Meshcat,
+    MeshcatVisualizer,
+    MeshcatVisualizerParams,
+    Role,
+    SceneGraph,
+)
 from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
@@ -75,16 +81,9 @@ def build_herb_simulation(
             forces) and recorded for replay.
     """
     builder = DiagramBuilder()
-    plant, scene_graph = AddMultibodyPlant(sim.plant_config(), builder)
-    world = populate_world(plant, scene_graph, scene, layout=layout)
-    plant.Finalize()
-
+    plant, scene_graph, world = add_herb_plant(builder, scene, layout=layout, sim=sim)
     arm_command = builder.AddSystem(TrajectorySource(arm_trajectory, output_derivative_order=1))
     builder.Connect(arm_command.get_output_port(), plant.get_desired_state_input_port(world.wam))
-    preshape = np.concatenate([world.hand.preshape, np.zeros_like(world.hand.preshape)])
-    hand_command = builder.AddSystem(ConstantVectorSource(preshape))
-    builder.Connect(hand_command.get_output_port(),
-                    plant.get_desired_state_input_port(world.hand.instance))
 
     tactile = builder.AddSystem(TactileSensor(layout, world.hand.patch_geometry, noise=noise,
                                               seed=seed, period_s=tactile_period_s))
@@ -93,12 +92,33 @@ def build_herb_simulation(
     contact_log = LogVectorOutput(tactile.GetOutputPort("contact"), builder, tactile_period_s)
     force_log = LogVectorOutput(tactile.GetOutputPort("force"), builder, tactile_period_s)
 
-    visualizer = None
-    if meshcat is not None:
-        visualizer = MeshcatVisualizer.AddToBuilder(
-            builder, scene_graph, meshcat, MeshcatVisualizerParams(role=Role.kIllustration))
-        ContactVisualizer.AddToBuilder(
-            builder, plant, meshcat,
-            ContactVisualizerParams(newtons_per_meter=40.0, newton_meters_per_meter=1.0))
+    visualizer = None if meshcat is None else add_meshcat(builder, plant, scene_graph, meshcat)
     diagram = builder.Build()
     return HerbSimulation(diagram, plant, world, tactile, contact_log, force_log, visualizer)
+
+
+def add_herb_plant(builder: DiagramBuilder, scene: SceneSpec, *, layout: TactileLayout,
+                   sim: SimulationConfig = SimulationConfig()
+                   ) -> tuple[MultibodyPlant, SceneGraph, World]:
+    """Add the finalised plant of ``scene`` with the hand held in its preshape; the arm's
+    desired-state input port (``plant.get_desired_state_input_port(world.wam)``) is left
+    for the caller to drive."""
+    plant, scene_graph = AddMultibodyPlant(sim.plant_config(), builder)
+    world = populate_world(plant, scene_graph, scene, layout=layout)
+    plant.Finalize()
+    preshape = np.concatenate([world.hand.preshape, np.zeros_like(world.hand.preshape)])
+    hand_command = builder.AddSystem(ConstantVectorSource(preshape))
+    builder.Connect(hand_command.get_output_port(),
+                    plant.get_desired_state_input_port(world.hand.instance))
+    return plant, scene_graph, world
+
+
+def add_meshcat(builder: DiagramBuilder, plant: MultibodyPlant, scene_graph: SceneGraph,
+                meshcat: Meshcat) -> MeshcatVisualizer:
+    """Draw the scene's illustration geometry and its contact forces in ``meshcat``."""
+    visualizer = MeshcatVisualizer.AddToBuilder(
+        builder, scene_graph, meshcat, MeshcatVisualizerParams(role=Role.kIllustration))
+    ContactVisualizer.AddToBuilder(
+        builder, plant, meshcat,
+        ContactVisualizerParams(newtons_per_meter=40.0, newton_meters_per_meter=1.0))
+    return visualizer

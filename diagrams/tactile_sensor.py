@@ -15,7 +15,7 @@ from pydrake.geometry import GeometryId
 from pydrake.multibody.plant import ContactResults
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
-from models.tactile import TactileLayout, TactileNoise, patch_force_magnitudes
+from models.tactile import SensorGroups, TactileLayout, TactileNoise, patch_force_magnitudes
 
 
 def contact_pairs_by_patch(
@@ -57,6 +57,9 @@ class TactileSensor(LeafSystem):
     Output ports:
         contact: (P,) 1.0 where the (noisy) reading says contact, else 0.0.
         force: (P,) force magnitude per patch (N), with Gaussian noise.
+        sensor_contact: (S,) readings of the pooled sensors, only when ``groups`` is given:
+            the noise model applied to each group's summed true force (its draws come from
+            ``default_rng([seed, k, 1])``, apart from the patches').
 
     Args:
         layout: patch layout; the output order is ``layout.patch_names``.
@@ -64,6 +67,7 @@ class TactileSensor(LeafSystem):
         noise: the sensor's noise model (default: the thesis' 10% error during contact).
         seed: seed of the noise.
         period_s: sampling period (s).
+        groups: patches pooled into a planar model's sensors (see :class:`SensorGroups`).
     """
 
     def __init__(
@@ -74,6 +78,7 @@ class TactileSensor(LeafSystem):
         noise: TactileNoise = TactileNoise(),
         seed: int = 0,
         period_s: float = 0.01,
+        groups: SensorGroups | None = None,
     ):
         super().__init__()
         self.patch_names = layout.patch_names
@@ -85,14 +90,19 @@ class TactileSensor(LeafSystem):
         self._seed = seed
         self.period_s = period_s
         count = len(self.patch_names)
+        self._membership = None if groups is None else groups.membership(self.patch_names)
+        sensors = 0 if groups is None else len(groups.names)
         self._contact_results = self.DeclareAbstractInputPort(
             "contact_results", Value(ContactResults()))
-        self._state = self.DeclareDiscreteState(2 * count)
+        self._state = self.DeclareDiscreteState(2 * count + sensors)
         self.DeclarePeriodicDiscreteUpdateEvent(period_s, 0.0, self._update)
         self.DeclareVectorOutputPort("contact", count, self._output_contact,
                                      prerequisites_of_calc={self.xd_ticket()})
         self.DeclareVectorOutputPort("force", count, self._output_force,
                                      prerequisites_of_calc={self.xd_ticket()})
+        if groups is not None:
+            self.DeclareVectorOutputPort("sensor_contact", sensors, self._output_sensors,
+                                         prerequisites_of_calc={self.xd_ticket()})
 
     def _update(self, context, discrete_state) -> EventStatus:
         results = self._contact_results.Eval(context)
@@ -101,11 +111,21 @@ class TactileSensor(LeafSystem):
         step = int(round(context.get_time() / self.period_s))
         contact, noisy_force = self._noise.sample(
             forces, rng=np.random.default_rng([self._seed, step]))
-        discrete_state.set_value(np.concatenate([contact.astype(float), noisy_force]))
+        values = [contact.astype(float), noisy_force]
+        if self._membership is not None:
+            grouped, _ = self._noise.sample(self._membership @ forces,
+                                            rng=np.random.default_rng([self._seed, step, 1]))
+            values.append(grouped.astype(float))
+        discrete_state.set_value(np.concatenate(values))
         return EventStatus.Succeeded()
 
     def _output_contact(self, context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state_vector().value()[: len(self.patch_names)])
 
     def _output_force(self, context, output: BasicVector) -> None:
-        output.SetFromVector(context.get_discrete_state_vector().value()[len(self.patch_names):])
+        count = len(self.patch_names)
+        output.SetFromVector(context.get_discrete_state_vector().value()[count:2 * count])
+
+    def _output_sensors(self, context, output: BasicVector) -> None:
+        values = context.get_discrete_state_vector().value()
+        output.SetFromVector(values[2 * len(self.patch_names):])

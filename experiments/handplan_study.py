@@ -31,6 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 from estimation.manifolds import AnalyticManifold
+from experiments.statistics import wilson_interval
 from experiments.timing import median_ms
 from models.planar.world import PlanarWorld
 from planning.cassandra import write_pomdp
@@ -213,7 +214,7 @@ def evaluate_continuous(problem: SolvedProblem, beliefs: list[GaussianBelief],
                 policy.observe(int(actions[j]), readings[j], rng=rngs[j])
             success[t + 1] = model.in_goal(states)
         rate = success.mean(axis=1)
-        lo, hi = _wilson(success[-1].sum(), trials)
+        lo, hi = wilson_interval(success[-1].sum(), trials)
         out[name] = {
             "success_rate": float(rate[-1]), "success_rate_ci95": [lo, hi],
             "success_over_time": rate.tolist(),
@@ -310,14 +311,6 @@ def _settings_dict(settings: HandplanSettings) -> dict:
 
 def _half_width(values: np.ndarray) -> float:
     return float(1.96 * values.std(ddof=1) / np.sqrt(len(values))) if len(values) > 1 else 0.0
-
-
-def _wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """95 % Wilson score interval of a proportion."""
-    p = successes / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return float(centre - half), float(centre + half)
 
 
 def quick_settings(settings: HandplanSettings) -> HandplanSettings:

@@ -291,7 +291,8 @@ class _HandBuilder:
         tip = sensing and self.layout.fingertips
         body_end = reach - s.tip_length if tip else reach
         self._link_halves(distal, finger, "distal", 0.0, body_end,
-                          self.layout.distal_inner_segments if sensing else 0)
+                          self.layout.distal_inner_segments if sensing else 0,
+                          outer_patch=sensing and self.layout.distal_outer)
         if tip:
             self._collide(distal, RigidTransform([0, 0, reach - s.tip_length / 2]),
                           Box(w, t, s.tip_length), f"{finger}_tip", f"{finger}_tip")
@@ -300,13 +301,16 @@ class _HandBuilder:
             self.plant.AddJointActuator(f"bh_{finger}_proximal", proximal_joint, 5.0)
         )
 
-    def _link_halves(self, body, finger, link, z0, z1, segments) -> None:
-        """Cover a finger link (z in [z0, z1]) with an outer non-sensing half and an inner
-        half split into ``segments`` patches (one non-sensing box when 0)."""
+    def _link_halves(self, body, finger, link, z0, z1, segments, *,
+                     outer_patch: bool = False) -> None:
+        """Cover a finger link (z in [z0, z1]) with an outer half (a patch named
+        ``<finger>_<link>_outer`` when ``outer_patch``, else non-sensing) and an inner half
+        split into ``segments`` patches (one non-sensing box when 0)."""
         w, t = self.spec.link_width, self.spec.link_thickness
         length = z1 - z0
+        outer = f"{finger}_{link}_outer"
         self._collide(body, RigidTransform([0, -t / 4, (z0 + z1) / 2]), Box(w, t / 2, length),
-                      f"{finger}_{link}_outer", None)
+                      outer, outer if outer_patch else None)
         if segments == 0:
             self._collide(body, RigidTransform([0, t / 4, (z0 + z1) / 2]),
                           Box(w, t / 2, length), f"{finger}_{link}_inner", None)

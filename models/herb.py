@@ -100,3 +100,11 @@ def X_W_palm(pose: PlanarPose | np.ndarray, palm_height_m: float) -> RigidTransf
     """
     x, y, theta = pose.as_array() if isinstance(pose, PlanarPose) else np.asarray(pose)
     return RigidTransform(RotationMatrix.MakeZRotation(theta) @ R_HP, [x, y, palm_height_m])
+
+
+def planar_palm_pose(X_W_palm: RigidTransform) -> np.ndarray:
+    """The planar hand pose (x m, y m, theta rad) of a palm frame's world pose: its
+    position in the plane and the heading of the palm's normal (z_P), the push direction;
+    the inverse of :func:`X_W_palm` for poses at the pushing height."""
+    p, z_P = X_W_palm.translation(), X_W_palm.rotation().col(2)
+    return np.array([p[0], p[1], np.arctan2(z_P[1], z_P[0])])

@@ -35,6 +35,9 @@ class TactileLayout:
         distal_inner_segments: patches along the inner face of each distal link (0 = none).
         proximal_inner_segments: patches along the inner face of each proximal link.
         palm_strips: strips across the palm pad, ordered from -y (F1/F2 side) to +y (F3).
+        distal_outer: a patch on the outer face of each distal link (``f1_distal_outer``),
+            the face a pushed object meets; with the tip and inner patches it makes the
+            whole distal link a sensor, like HERB's strain gauges (thesis sec. 6.5).
     """
 
     fingers: tuple[str, ...] = FINGERS
@@ -42,6 +45,7 @@ class TactileLayout:
     distal_inner_segments: int = 1
     proximal_inner_segments: int = 1
     palm_strips: int = 3
+    distal_outer: bool = False
 
     @property
     def patch_names(self) -> tuple[str, ...]:
@@ -51,6 +55,8 @@ class TactileLayout:
             if self.fingertips:
                 names.append(f"{finger}_tip")
             names += [f"{finger}_distal_{i}" for i in range(self.distal_inner_segments)]
+            if self.distal_outer:
+                names.append(f"{finger}_distal_outer")
             names += [f"{finger}_proximal_{i}" for i in range(self.proximal_inner_segments)]
         names += [f"palm_{i}" for i in range(self.palm_strips)]
         return tuple(names)
@@ -69,6 +75,7 @@ class TactileLayout:
                 fields.number("proximal_inner_segments", 1, min=0, max=20, integer=True)
             ),
             palm_strips=int(fields.number("palm_strips", 3, min=0, max=50, integer=True)),
+            distal_outer=fields.boolean("distal_outer", False),
         )
         fields.done()
         if not layout.patch_names:
@@ -163,3 +170,41 @@ class TactileNoise:
             forces_n + self.force_noise_std_n * rng.standard_normal(forces_n.shape), 0.0
         )
         return touching ^ flips, noisy_force
+
+
+@dataclass(frozen=True)
+class SensorGroups:
+    """Patches pooled into the few binary sensors of a planar model.
+
+    The planning model of thesis ch. 6 has one sensor per finger side (the front of the
+    F1/F2 fingers and the front of F3; ``models/assets/planar_sensors/fingertips.yaml``,
+    ordered from -y to +y). A group reads contact when the summed force magnitude of its
+    patches exceeds the noise model's threshold, and the noise model's errors apply to the
+    group, not to each patch: pooling noisy patches instead would multiply the false
+    positives of a many-patch group.
+
+    Attributes:
+        names: the sensors, in the planar model's order.
+        fingers: for each sensor, the fingers whose patches it pools (a patch belongs to a
+            finger when its name starts with ``"<finger>_"``).
+    """
+
+    names: tuple[str, ...] = ("f12", "f3")
+    fingers: tuple[tuple[str, ...], ...] = (("f1", "f2"), ("f3",))
+
+    def __post_init__(self) -> None:
+        if len(self.names) != len(self.fingers) or not self.names:
+            raise ValueError("SensorGroups needs one finger tuple per sensor name")
+
+    def membership(self, patch_names: tuple[str, ...]) -> np.ndarray:
+        """(S, P) 0/1 matrix: which patches each sensor pools.
+
+        Raises:
+            ValueError: when a sensor pools no patch of ``patch_names``.
+        """
+        matrix = np.array([[float(any(p.startswith(f + "_") for f in fingers))
+                            for p in patch_names] for fingers in self.fingers])
+        empty = [n for n, row in zip(self.names, matrix, strict=True) if not row.any()]
+        if empty:
+            raise ValueError(f"sensor groups {empty} pool no patch of {list(patch_names)}")
+        return matrix

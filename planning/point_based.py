@@ -55,6 +55,13 @@ class AlphaVectorPolicy:
     def act(self, belief: np.ndarray) -> int:
         return int(self.alpha_actions[np.argmax(self.alphas @ belief)])
 
+    def action_values(self, belief: np.ndarray) -> np.ndarray:
+        """(A,) the best vector value of each action at ``belief`` (-inf for an action
+        with no vector): the order in which to fall back when the best is infeasible."""
+        values = np.full(len(self.action_names), -np.inf)
+        np.maximum.at(values, self.alpha_actions, self.alphas @ belief)
+        return values
+
     def __call__(self, belief: np.ndarray) -> int:
         return self.act(belief)
 

@@ -51,6 +51,21 @@ def small_hand_model():
     return build_hand_pomdp(world, spec, rng=np.random.default_rng(0), progress=False)
 
 
+@pytest.fixture(scope="session")
+def small_hand_solution(tmp_path_factory):
+    """A small solved hand problem (as ``small_hand_model``, 2 samples per state; the
+    point-based solver stopped after a few trials), cached in a temporary directory."""
+    from planning.hand_discretization import HandProblemSpec
+    from planning.hand_solution import HandSolveSettings, solve_hand_problem
+
+    spec = HandProblemSpec(trust_x_m=(0.0, 0.22), trust_y_m=(-0.08, 0.08),
+                           samples_per_state=2)
+    settings = HandSolveSettings(spec=spec, solve_seconds=5.0, solve_trials=3, belief_count=3,
+                                 belief_particles=200)
+    cache = tmp_path_factory.mktemp("hand_cache")
+    return solve_hand_problem(settings, cache_dir=cache, progress=False), settings, cache
+
+
 def _synthetic_push_log(seed: int = 0, c_m: float = 0.03):
     """A pusher log without Drake: rect1 pushed straight by both rods (1-3 s), then turned
     by one rod under the ellipsoidal limit surface with sticking contact (4-6 s), with the

@@ -6,7 +6,7 @@ from pydrake.geometry import GeometryId
 from pydrake.multibody.plant import ContactResults
 
 from diagrams.tactile_sensor import TactileSensor
-from models.tactile import TactileLayout, TactileNoise
+from models.tactile import SensorGroups, TactileLayout, TactileNoise
 
 LAYOUT = TactileLayout.load("fingertips")
 
@@ -50,3 +50,18 @@ def test_noise_is_a_function_of_seed_and_time_only():
 def test_missing_patch_geometry_is_an_error():
     with pytest.raises(ValueError, match="no geometry for patches"):
         TactileSensor(LAYOUT, {"f1_tip": GeometryId.get_new_id()})
+
+
+def test_pooled_sensors_draw_their_own_noise():
+    """Groups get one draw each: a group never reads more errors than one sensor would."""
+    geometry = {name: GeometryId.get_new_id() for name in LAYOUT.patch_names}
+    always_wrong = TactileNoise(false_positive_rate_free=1.0, force_noise_std_n=0.0)
+    sensor = TactileSensor(LAYOUT, geometry, noise=always_wrong, seed=3,
+                           groups=SensorGroups())
+    context = sensor.CreateDefaultContext()
+    sensor.get_input_port().FixValue(context, ContactResults())
+    context.SetDiscreteState(sensor.EvalUniquePeriodicDiscreteUpdate(context).get_vector()
+                             .value())
+    np.testing.assert_array_equal(sensor.GetOutputPort("sensor_contact").Eval(context),
+                                  [1.0, 1.0])
+    assert sensor.GetOutputPort("force").size() == 3

@@ -62,7 +62,8 @@ def test_couplings_and_actuators(herb):
 
 
 @pytest.mark.parametrize("layout_name,expected", [
-    ("fingertips", 3), ("default", 3 * 3 + 3), ("dense", 3 * (1 + 3 + 4) + 8)])
+    ("fingertips", 3), ("default", 3 * 3 + 3), ("dense", 3 * (1 + 3 + 4) + 8),
+    ("distal_links", 3 * 3)])
 def test_patch_geometry_follows_the_layout(layout_name, expected):
     plant, world = build(layout_name)
     layout = TactileLayout.load(layout_name)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from models.tactile import TactileNoise, patch_force_magnitudes
+from models.tactile import SensorGroups, TactileLayout, TactileNoise, patch_force_magnitudes
 
 
 def test_forces_sum_per_patch_and_ignore_non_patches():
@@ -51,3 +51,19 @@ def test_sampling_is_reproducible_from_the_seed():
 def test_invalid_rates_rejected():
     with pytest.raises(ValueError, match="false_negative_rate"):
         TactileNoise(false_negative_rate=1.5)
+
+
+def test_distal_links_layout_makes_every_distal_face_a_patch():
+    layout = TactileLayout.load("distal_links")
+    assert layout.patch_names == tuple(f"{f}_{p}" for f in ("f1", "f2", "f3")
+                                       for p in ("tip", "distal_0", "distal_outer"))
+
+
+def test_sensor_groups_pool_the_patches_of_each_finger_side():
+    names = TactileLayout.load("distal_links").patch_names
+    membership = SensorGroups().membership(names)
+    assert membership.shape == (2, 9)
+    np.testing.assert_array_equal(membership.sum(axis=1), [6, 3])
+    assert membership[1, names.index("f3_distal_outer")] == 1
+    with pytest.raises(ValueError, match="pool no patch"):
+        SensorGroups().membership(("f1_tip", "palm_0"))

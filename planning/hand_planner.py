@@ -1,0 +1,86 @@
+"""The closed loop's planner: the pre-contact trajectory, then the post-contact policy,
+acting on the estimator's particle belief (DESIGN.md's planner seam).
+
+:class:`~planning.hand_policy.HandPolicy` is the thesis' execution (sec. 6.1, 6.4.1): it
+keeps its own beliefs (a particle filter before contact, the discrete Bayes filter of the
+planning model after). In the closed-loop diagram the belief comes from the estimator
+system instead (the MPF by default), so :class:`HandPlanner` is stateless about beliefs:
+
+- before contact it returns the next action of the weighted A* trajectory
+  (:class:`~planning.precontact.PreContactPlanner`), searched once from the first belief it
+  is given;
+- from the first decision after the estimator has seen contact, or once the trajectory is
+  used up, it discretises the particle belief onto the model's states
+  (:meth:`~planning.hand_pomdp.HandPOMDP.belief`) and acts with the post-contact vectors
+  (QMDP's Q columns or the point-based policy's alpha-vectors).
+
+Every answer ranks all actions, so a controller that finds the best one infeasible can fall
+back to the next: by the post-contact vectors' value at the current belief.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from estimation.belief import ParticleBelief
+from planning.hand_pomdp import HandPOMDP
+from planning.point_based import AlphaVectorPolicy
+from planning.precontact import PreContactPlan, PreContactPlanner, PreContactSettings
+
+
+class HandPlanner:
+    """``plan(belief, *, contact_seen, rng) -> (action, stats)``.
+
+    Args:
+        model: the hand-relative POMDP.
+        post_contact: the post-contact vectors.
+        precontact: settings of the pre-contact search, or ``None`` to act with the
+            post-contact policy from the start.
+    """
+
+    def __init__(self, model: HandPOMDP, post_contact: AlphaVectorPolicy,
+                 precontact: PreContactSettings | None = PreContactSettings()):
+        self.model = model
+        self.post_contact = post_contact
+        self._search = (None if precontact is None
+                        else PreContactPlanner(model, post_contact, precontact))
+        self.trajectory: PreContactPlan | None = None
+        self.phase = "pre-contact" if precontact is not None else "post-contact"
+        self._step = 0
+
+    def plan(self, belief: ParticleBelief, *, contact_seen: bool,
+             rng: np.random.Generator) -> tuple[int, dict]:
+        """The next action for ``belief`` (object poses in the hand frame).
+
+        Returns:
+            ``(action index, stats)``; stats: ``phase``, ``ranking`` (every action, best
+            first), ``planning_ms`` (wall time of this call, including the search when it
+            ran), and, on the call that searched, ``search`` (its actions, expansions,
+            seconds and stop reason).
+        """
+        start = time.perf_counter()
+        stats: dict = {}
+        values = self.post_contact.action_values(
+            self.model.belief(np.asarray(belief.states), belief.weights))
+        ranking = [int(a) for a in np.argsort(-values, kind="stable")]
+        if self.phase == "pre-contact" and contact_seen:
+            self.phase = "post-contact"
+        if self.phase == "pre-contact":
+            if self.trajectory is None:
+                self.trajectory = self._search.plan(np.asarray(belief.states), belief.weights,
+                                                    rng=rng)
+                stats["search"] = {"actions": list(self.trajectory.actions),
+                                   "expansions": self.trajectory.expansions,
+                                   "seconds": self.trajectory.seconds,
+                                   "reason": self.trajectory.reason}
+            if self._step < len(self.trajectory.actions):
+                first = self.trajectory.actions[self._step]
+                self._step += 1
+                ranking = [first] + [a for a in ranking if a != first]
+            else:
+                self.phase = "post-contact"
+        stats.update(phase=self.phase, ranking=ranking,
+                     planning_ms=1e3 * (time.perf_counter() - start))
+        return ranking[0], stats
