@@ -12,7 +12,8 @@ DEFAULT_CACHE = Path("out/cache")
 def add_commands(commands, studies) -> None:
     run = commands.add_parser("run", help="one closed-loop episode: HERB pushes by touch")
     run.add_argument("--scene", default="closed_loop", help="scene name or path")
-    run.add_argument("--object", default="small_box", help="object name or path")
+    run.add_argument("--object", default="bottle",
+                     help="object name or path (the thesis' real-robot trials: a bottle)")
     run.add_argument("--policy", choices=("qmdp", "pomdp"), default="pomdp")
     run.add_argument("--estimator", choices=("mpf", "cpf"), default="mpf")
     run.add_argument("--belief", type=int, choices=(1, 2, 3), default=2,
@@ -29,6 +30,7 @@ def add_commands(commands, studies) -> None:
     study.add_argument("--policy", choices=("qmdp", "pomdp", "both"), default="both")
     study.add_argument("--trials", type=int, default=30,
                        help="episodes per policy, spread over the three beliefs")
+    study.add_argument("--object", default="bottle", help="object name or path")
     study.add_argument("--estimator", choices=("mpf", "cpf"), default="mpf")
     study.add_argument("--on-infeasible", choices=("stop", "next"), default="stop")
     _common(study)
@@ -36,6 +38,9 @@ def add_commands(commands, studies) -> None:
 
 
 def _common(parser) -> None:
+    parser.add_argument("--planner-belief", choices=("estimator", "thesis"), default="estimator",
+                        help="the policy acts on the estimator's belief, or on its own filters "
+                             "as in the thesis (sec. 6.4.1)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--horizon", type=int, default=30, help="decisions per episode")
     parser.add_argument("--particles", type=int, default=500)
@@ -86,7 +91,8 @@ def _run(args) -> int:
 
     settings = EpisodeSettings(
         scene=args.scene, object_name=args.object, policy=args.policy,
-        estimator=args.estimator, belief_mean=THESIS_BELIEF_MEANS[args.belief - 1],
+        estimator=args.estimator, planner_belief=args.planner_belief,
+        belief_mean=THESIS_BELIEF_MEANS[args.belief - 1],
         particles=args.particles, horizon=args.horizon, on_infeasible=args.on_infeasible,
         precontact=PreContactSettings(time_limit_s=args.plan_seconds), seed=args.seed)
     solution = _solution(args, args.object)
@@ -122,9 +128,10 @@ def _study(args) -> int:
     policies = ("qmdp", "pomdp") if args.policy == "both" else (args.policy,)
     settings = ClosedLoopSettings(
         policies=policies, trials=args.trials, seed=args.seed, estimator=args.estimator,
+        planner_belief=args.planner_belief, object_name=args.object,
         horizon=args.horizon, particles=args.particles, on_infeasible=args.on_infeasible,
         plan_seconds=args.plan_seconds)
-    solution = _solution(args, "small_box")
+    solution = _solution(args, args.object)
     summary = run_closedloop_study(settings, solution, args.out,
                                    progress=not args.no_progress)
     for name, result in summary["policies"].items():

@@ -46,16 +46,19 @@ from models.kinematics import PlanarHandIK
 from models.planar.se2 import compose, inverse
 from models.scene import PlanarPose, SceneSpec
 from models.tactile import SensorGroups, TactileLayout, TactileNoise
-from planning.hand_planner import HandPlanner
+from planning.hand_planner import HandPlanner, ThesisHandPlanner
 from planning.hand_pomdp import goal_region
 from planning.hand_solution import HandSolution
 from planning.precontact import PreContactSettings
 
 ESTIMATORS = ("mpf", "cpf")
+PLANNER_BELIEFS = ("estimator", "thesis")
 POLICIES = ("qmdp", "pomdp")
 #: The thesis' three initial beliefs (sec. 6.5): means 35 cm ahead at lateral offsets 12,
 #: 0 and 6 cm; its figure shows the first to the hand's right (-y).
 THESIS_BELIEF_MEANS = ((0.35, -0.12, 0.0), (0.35, 0.0, 0.0), (0.35, 0.06, 0.0))
+TOPPLED_RAD = float(np.deg2rad(45.0))
+"""An object tilted further than this has fallen over; the episode ends."""
 
 
 class InfeasibleStart(RuntimeError):
@@ -68,9 +71,17 @@ class EpisodeSettings:
 
     Attributes:
         scene: scene name or path (its object is replaced by ``object_name``).
-        object_name: the pushed object; it must be the planning model's.
+        object_name: the pushed object; it must be the planning model's. The thesis'
+            real-robot trials pushed a bottle (sec. 6.5), and so do these: the small box
+            of the simulations (3.5 cm x 5 cm, 12 cm tall) topples in Drake when a finger
+            pushes it above about 5 cm, which HERB's fingers do (F2 at about 8.5 cm).
         policy: post-contact policy, ``qmdp`` or ``pomdp``.
         estimator: ``mpf`` (manifold particle filter, analytic manifold) or ``cpf``.
+        planner_belief: what the policy acts on: ``estimator`` (the estimator system's
+            belief, discretised after contact; :class:`~planning.hand_planner.HandPlanner`)
+            or ``thesis`` (the policy's own particle filter, then the planning model's
+            discrete Bayes filter, sec. 6.4.1;
+            :class:`~planning.hand_planner.ThesisHandPlanner`).
         belief_mean: (x m, y m, theta rad) of the initial belief, hand frame.
         belief_std: its standard deviations (thesis sec. 6.5: 5 cm; 15 deg as sec. 6.4.2).
         particles: estimator particles.
@@ -82,6 +93,10 @@ class EpisodeSettings:
         precontact: the pre-contact search's settings.
         hand_speed_m_per_s: nominal palm speed.
         travel_m: palm travel between estimator updates (m).
+        posture_weight: the IK's pull towards HERB's home posture
+            (:class:`~models.kinematics.PlanarHandIK`); without it (0) warm-started
+            motions drift into postures that collide in the middle of the workspace (4 of
+            40 forward-biased random walks, against none with 0.05).
         layout: Drake tactile layout (``distal_links``: every face of each distal link).
         noise: the tactile sensors' noise (thesis: 10 % wrong readings during contact).
         time_step_s: the plant's time step.
@@ -90,9 +105,10 @@ class EpisodeSettings:
     """
 
     scene: str = "closed_loop"
-    object_name: str = "small_box"
+    object_name: str = "bottle"
     policy: str = "pomdp"
     estimator: str = "mpf"
+    planner_belief: str = "estimator"
     belief_mean: tuple[float, float, float] = THESIS_BELIEF_MEANS[1]
     belief_std: tuple[float, float, float] = (0.05, 0.05, float(np.deg2rad(15.0)))
     particles: int = 500
@@ -101,6 +117,7 @@ class EpisodeSettings:
     precontact: PreContactSettings = field(default_factory=PreContactSettings)
     hand_speed_m_per_s: float = 0.05
     travel_m: float = 0.005
+    posture_weight: float = 0.05
     layout: str = "distal_links"
     noise: TactileNoise = field(default_factory=TactileNoise)
     time_step_s: float = SimulationConfig().time_step_s
@@ -111,6 +128,9 @@ class EpisodeSettings:
             raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
         if self.estimator not in ESTIMATORS:
             raise ValueError(f"estimator must be one of {ESTIMATORS}, got {self.estimator!r}")
+        if self.planner_belief not in PLANNER_BELIEFS:
+            raise ValueError(f"planner_belief must be one of {PLANNER_BELIEFS}, got "
+                             f"{self.planner_belief!r}")
         if self.particles < 10 or self.horizon < 1:
             raise ValueError("particles must be >= 10 and horizon >= 1")
         if self.on_infeasible not in ("next", "stop"):
@@ -135,7 +155,8 @@ class Episode:
 
 def make_filter(kind: str, world):
     """A filter factory for the estimator system; the analytic manifold (built once here,
-    about a second) is shared by every filter it makes."""
+    about 10 s for the small box at the thesis' 1.15 deg) is shared by every filter it
+    makes."""
     if kind == "cpf":
         return lambda: ConventionalParticleFilter(world)
     manifold = AnalyticManifold(world)
@@ -170,7 +191,7 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
                                                            rng=rng))
     scene = SceneSpec.load(settings.scene, object_override=settings.object_name)
     start = scene.hand_start.as_array()
-    ik = PlanarHandIK(scene)
+    ik = PlanarHandIK(scene, posture_weight=settings.posture_weight)
     first = ik.solve_multistart(start, rng=np.random.default_rng([settings.seed, 1]))
     if not first.feasible:
         raise InfeasibleStart(f"hand start {np.round(start, 3).tolist()}: {first.reason}")
@@ -199,10 +220,11 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
     builder.Connect(poses.GetOutputPort("palm_pose"), estimator.GetInputPort("palm_pose"))
     actions = model.spec.action_vectors()
     post_contact = solution.policies[settings.policy]
+    planner_type = HandPlanner if settings.planner_belief == "estimator" else ThesisHandPlanner
     controller = builder.AddSystem(HandController(
-        lambda: HandPlanner(model, post_contact, settings.precontact), motion, actions,
-        initial, horizon=settings.horizon, on_infeasible=settings.on_infeasible,
-        seed=settings.seed))
+        lambda: planner_type(model, post_contact, settings.precontact), motion, actions,
+        initial, world.sensor_count, horizon=settings.horizon,
+        on_infeasible=settings.on_infeasible, seed=settings.seed))
     executor = builder.AddSystem(ActionExecutor(motion, actions, start, first.q,
                                                 hand_speed_m_per_s=settings.hand_speed_m_per_s))
     builder.Connect(estimator.GetOutputPort("belief"), controller.GetInputPort("belief"))
@@ -210,6 +232,8 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
                     controller.GetInputPort("contact_seen"))
     builder.Connect(executor.GetOutputPort("executor_state"),
                     controller.GetInputPort("executor_state"))
+    builder.Connect(tactile.GetOutputPort("sensor_contact"),
+                    controller.GetInputPort("sensor_contact"))
     builder.Connect(controller.GetOutputPort("command"), executor.GetInputPort("command"))
     builder.Connect(executor.GetOutputPort("arm_desired_state"),
                     plant.get_desired_state_input_port(herb.wam))
@@ -264,6 +288,10 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
         bar.update(len(controller.decisions(controller_context)) - bar.n)
         if not scene.table.contains(obj[0], obj[1], 0.01):
             stop = "object_left_table"
+            break
+        if poses.GetOutputPort("object_tilt").Eval(poses.GetMyContextFromRoot(root))[0] > \
+                TOPPLED_RAD:
+            stop = "object_toppled"
             break
         decisions = controller.decisions(controller_context)
         if controller.finished(controller_context) and _last_motion_done(executor, root,
@@ -346,8 +374,10 @@ def _summary(settings, solution, trace, decisions, goal, stop, wall_s, refused) 
         "infeasible_rejected": sum(len(d.rejected) for d in decisions),
         "rejections": [{"time_s": d.time_s, "action": names[a], "reason": r}
                        for d in decisions for a, r in d.rejected],
-        "contact_seen_at_step": next((i for i, d in enumerate(executed)
-                                      if d.phase == "post-contact"), None),
+        "post_contact_from_step": next((i for i, d in enumerate(executed)
+                                        if d.phase == "post-contact"), None),
+        "first_contact_reading_s": (float(trace["time_s"][np.argmax(trace["readings"].any(1))])
+                                    if trace["readings"].any() else None),
         "sim_time_s": sim_s,
         "wall_time_s": wall_s,
         "real_time_factor": sim_s / wall_s,

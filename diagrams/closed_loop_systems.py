@@ -46,7 +46,9 @@ class PlanarPoses(LeafSystem):
     """The palm's and the object's planar world poses from the plant's body poses.
 
     Input port: ``body_poses`` (the plant's, abstract).
-    Output ports: ``palm_pose`` (3), ``object_pose`` (3).
+    Output ports: ``palm_pose`` (3), ``object_pose`` (3), ``object_tilt`` (1): the angle
+    (rad) between the object's vertical axis and the world's (a toppled object's planar
+    pose means nothing).
     """
 
     def __init__(self, plant: MultibodyPlant, world: World):
@@ -59,6 +61,7 @@ class PlanarPoses(LeafSystem):
             "body_poses", AbstractValue.Make([RigidTransform()] * plant.num_bodies()))
         self.DeclareVectorOutputPort("palm_pose", 3, self._palm)
         self.DeclareVectorOutputPort("object_pose", 3, self._object)
+        self.DeclareVectorOutputPort("object_tilt", 1, self._tilt)
 
     def _palm(self, context, output: BasicVector) -> None:
         X_WB = self._poses.Eval(context)[self._palm_body]
@@ -66,6 +69,10 @@ class PlanarPoses(LeafSystem):
 
     def _object(self, context, output: BasicVector) -> None:
         output.SetFromVector(transform_to_planar(self._poses.Eval(context)[self._object_body]))
+
+    def _tilt(self, context, output: BasicVector) -> None:
+        z = self._poses.Eval(context)[self._object_body].rotation().col(2)
+        output.SetFromVector([np.arccos(np.clip(z[2], -1.0, 1.0))])
 
 
 class _Handle:
@@ -179,7 +186,8 @@ class HandController(LeafSystem):
     """Asks the planner for an action whenever the executor is idle, and sends the best
     one whose motion is feasible.
 
-    Input ports: ``belief`` (abstract), ``contact_seen`` (1), ``executor_state`` (11).
+    Input ports: ``belief`` (abstract), ``contact_seen`` (1), ``executor_state`` (11),
+    ``sensor_contact`` (S): the reading handed to the planner with the last action.
     Output port: ``command`` (2).
 
     Args:
@@ -195,8 +203,8 @@ class HandController(LeafSystem):
     """
 
     def __init__(self, make_planner, motion: HandMotionPlanner, action_vectors: np.ndarray,
-                 initial: ParticleBelief, *, horizon: int, on_infeasible: str = "stop",
-                 seed: int = 0, check_period_s: float = 0.02):
+                 initial: ParticleBelief, sensor_count: int, *, horizon: int,
+                 on_infeasible: str = "stop", seed: int = 0, check_period_s: float = 0.02):
         super().__init__()
         if on_infeasible not in ("next", "stop"):
             raise ValueError(f"on_infeasible must be 'next' or 'stop', got {on_infeasible!r}")
@@ -209,6 +217,7 @@ class HandController(LeafSystem):
         self._belief = self.DeclareAbstractInputPort("belief", AbstractValue.Make(initial))
         self._contact = self.DeclareVectorInputPort("contact_seen", 1)
         self._executor = self.DeclareVectorInputPort("executor_state", EXECUTOR_STATE_SIZE)
+        self._readings = self.DeclareVectorInputPort("sensor_contact", sensor_count)
         self._handle = self.DeclareAbstractState(AbstractValue.Make(_Handle()))
         self._command = self.DeclareDiscreteState(np.array([0.0, -1.0]))
         self.DeclarePeriodicUnrestrictedUpdateEvent(check_period_s, 0.0, self._update)
@@ -231,9 +240,12 @@ class HandController(LeafSystem):
             handle.core = self._make_planner()
         k = len(handle.log)
         belief = self._belief.Eval(context)
+        last = handle.log[-1].action if handle.log else -1
         _, stats = handle.core.plan(belief,
                                     contact_seen=bool(self._contact.Eval(context)[0] > 0.5),
-                                    rng=np.random.default_rng([self._seed, k]))
+                                    rng=np.random.default_rng([self._seed, k]),
+                                    last_action=last if last >= 0 else None,
+                                    reading=self._readings.Eval(context) > 0.5)
         pose, q = executor[:3], executor[3:3 + NUM_ARM_JOINTS]
         chosen, rejected = -1, []
         for a in stats["ranking"]:

@@ -33,17 +33,21 @@ THESIS_REAL_ROBOT = {"pomdp": {"successes": 27, "trials": 30},
 class ClosedLoopSettings:
     """Attributes:
         policies: which post-contact policies to run.
+        object_name: the pushed object (the thesis' real-robot trials: a bottle).
         trials: episodes per policy.
         seed: master seed.
-        estimator, horizon, particles, on_infeasible: as :class:`EpisodeSettings`.
+        estimator, planner_belief, horizon, particles, on_infeasible: as
+            :class:`~diagrams.closed_loop.EpisodeSettings`.
         plan_seconds: the pre-contact search's time limit (s).
         beliefs: the initial belief means (hand frame).
     """
 
     policies: tuple[str, ...] = ("qmdp", "pomdp")
+    object_name: str = "bottle"
     trials: int = 30
     seed: int = 0
     estimator: str = "mpf"
+    planner_belief: str = "estimator"
     horizon: int = 30
     particles: int = 500
     on_infeasible: str = "stop"
@@ -53,7 +57,8 @@ class ClosedLoopSettings:
 
     def episode(self, policy: str, trial: int) -> EpisodeSettings:
         return EpisodeSettings(
-            policy=policy, estimator=self.estimator,
+            policy=policy, object_name=self.object_name, estimator=self.estimator,
+            planner_belief=self.planner_belief,
             belief_mean=self.beliefs[trial % len(self.beliefs)], particles=self.particles,
             horizon=self.horizon, on_infeasible=self.on_infeasible,
             precontact=PreContactSettings(time_limit_s=self.plan_seconds),

@@ -63,9 +63,18 @@ class PlanarHandIK:
         scene: the scene (robot mount, table, obstacles; its movable object is ignored).
         clearance_m: minimum distance (m) kept between robot geometry and the table,
             the obstacles and the robot itself.
+        posture_weight: weight of a pull towards HERB's home configuration, relative to
+            the pull towards the seed (0: none). A chain of warm-started solves otherwise
+            drifts wherever the seed leads and can end folded against a joint limit or the
+            robot's body with the target still reachable from another posture; a small
+            pull keeps the arm in the middle of its workspace (the null-space posture task
+            of a redundant arm's controller).
     """
 
-    def __init__(self, scene: SceneSpec, *, clearance_m: float = 0.005):
+    def __init__(self, scene: SceneSpec, *, clearance_m: float = 0.005,
+                 posture_weight: float = 0.0):
+        if posture_weight < 0:
+            raise ValueError(f"posture_weight must be >= 0, got {posture_weight}")
         builder = RobotDiagramBuilder(time_step=0.0)
         plant = builder.plant()
         self.world: World = populate_world(
@@ -78,6 +87,7 @@ class PlanarHandIK:
         self._context = self._diagram.CreateDefaultContext()
         self._plant_context = plant.GetMyMutableContextFromRoot(self._context)
         self.clearance_m = clearance_m
+        self.posture_weight = posture_weight
         self._q_full = self.world.robot_positions(plant, np.zeros(NUM_ARM_JOINTS))
         start = plant.GetJointByName("wam_j1", self.world.wam).position_start()
         self._arm_slice = slice(start, start + NUM_ARM_JOINTS)
@@ -176,6 +186,9 @@ class PlanarHandIK:
         for i in hand_indices:
             prog.AddBoundingBoxConstraint(self._q_full[i], self._q_full[i], q[i])
         prog.AddQuadraticErrorCost(np.eye(NUM_ARM_JOINTS), seed, arm)
+        if self.posture_weight > 0:
+            prog.AddQuadraticErrorCost(self.posture_weight * np.eye(NUM_ARM_JOINTS), self.home,
+                                       arm)
         prog.SetInitialGuess(q, self.full_positions(seed))
         result = Solve(prog)
         return result.is_success(), result.GetSolution(q)[self._arm_slice]

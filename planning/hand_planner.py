@@ -16,6 +16,11 @@ system instead (the MPF by default), so :class:`HandPlanner` is stateless about 
 
 Every answer ranks all actions, so a controller that finds the best one infeasible can fall
 back to the next: by the post-contact vectors' value at the current belief.
+
+:class:`ThesisHandPlanner` is the faithful alternative with the same interface: it runs
+:class:`~planning.hand_policy.HandPolicy` on its own beliefs, started from the first
+belief it is given and updated with the action executed and the reading at each decision,
+so the post-contact belief update is the planning model's own (sec. 6.4.1).
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import time
 import numpy as np
 
 from estimation.belief import ParticleBelief
+from planning.hand_policy import HandPolicy
 from planning.hand_pomdp import HandPOMDP
 from planning.point_based import AlphaVectorPolicy
 from planning.precontact import PreContactPlan, PreContactPlanner, PreContactSettings
@@ -50,9 +56,11 @@ class HandPlanner:
         self.phase = "pre-contact" if precontact is not None else "post-contact"
         self._step = 0
 
-    def plan(self, belief: ParticleBelief, *, contact_seen: bool,
-             rng: np.random.Generator) -> tuple[int, dict]:
-        """The next action for ``belief`` (object poses in the hand frame).
+    def plan(self, belief: ParticleBelief, *, contact_seen: bool, rng: np.random.Generator,
+             last_action: int | None = None,
+             reading: np.ndarray | None = None) -> tuple[int, dict]:
+        """The next action for ``belief`` (object poses in the hand frame); ``last_action``
+        and ``reading`` are not needed here (the belief carries them).
 
         Returns:
             ``(action index, stats)``; stats: ``phase``, ``ranking`` (every action, best
@@ -84,3 +92,53 @@ class HandPlanner:
         stats.update(phase=self.phase, ranking=ranking,
                      planning_ms=1e3 * (time.perf_counter() - start))
         return ranking[0], stats
+
+
+class ThesisHandPlanner:
+    """The thesis' execution behind the planner interface (see the module docstring).
+
+    Args:
+        model, post_contact, precontact: as :class:`HandPlanner`.
+    """
+
+    def __init__(self, model: HandPOMDP, post_contact: AlphaVectorPolicy,
+                 precontact: PreContactSettings | None = PreContactSettings()):
+        self.model = model
+        self.post_contact = post_contact
+        search = None if precontact is None else PreContactPlanner(model, post_contact,
+                                                                   precontact)
+        self.policy = HandPolicy(model, post_contact, search)
+        self._started = False
+
+    def plan(self, belief: ParticleBelief, *, contact_seen: bool, rng: np.random.Generator,
+             last_action: int | None = None,
+             reading: np.ndarray | None = None) -> tuple[int, dict]:
+        """The next action. The first call starts the policy from ``belief``; every later
+        one first updates the policy's belief with ``last_action`` (the action executed
+        since, or ``None`` when none was) and ``reading`` ((S,) bool, taken after it);
+        ``belief`` and ``contact_seen`` are then not used.
+
+        Returns:
+            ``(action index, stats)`` as :meth:`HandPlanner.plan`.
+        """
+        start = time.perf_counter()
+        stats: dict = {}
+        if not self._started:
+            self.policy.reset(belief, rng=rng)
+            self._started = True
+            if self.policy.plan is not None:
+                stats["search"] = {"actions": list(self.policy.plan.actions),
+                                   "expansions": self.policy.plan.expansions,
+                                   "seconds": self.policy.plan.seconds,
+                                   "reason": self.policy.plan.reason}
+        elif last_action is not None:
+            self.policy.observe(last_action, np.asarray(reading, dtype=bool), rng=rng)
+        action = self.policy.act()
+        tracked = self.policy.discrete if self.policy.discrete is not None else \
+            self.model.belief(np.asarray(self.policy.particles.states),
+                              self.policy.particles.weights)
+        values = self.post_contact.action_values(tracked)
+        ranking = [action] + [int(a) for a in np.argsort(-values, kind="stable") if a != action]
+        stats.update(phase=self.policy.phase, ranking=ranking,
+                     planning_ms=1e3 * (time.perf_counter() - start))
+        return action, stats

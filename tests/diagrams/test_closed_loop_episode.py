@@ -21,7 +21,8 @@ def meshcat():
 @pytest.fixture(scope="module")
 def episode(small_hand_solution, meshcat):
     solution, _, _ = small_hand_solution
-    settings = EpisodeSettings(policy="pomdp", estimator="cpf", particles=60, horizon=3,
+    settings = EpisodeSettings(object_name="small_box", policy="pomdp", estimator="cpf",
+                               particles=60, horizon=3,
                                belief_mean=(0.30, 0.0, 0.0),
                                precontact=PreContactSettings(time_limit_s=2.0), seed=4)
     return run_episode(settings, solution, meshcat=meshcat, progress=False,

@@ -40,8 +40,8 @@ class FakePlanner:
         self.ranking = ranking
         self.calls = []
 
-    def plan(self, belief, *, contact_seen, rng):
-        self.calls.append(contact_seen)
+    def plan(self, belief, *, contact_seen, rng, last_action, reading):
+        self.calls.append((contact_seen, last_action, tuple(reading)))
         return self.ranking[0], {"phase": "post-contact", "ranking": self.ranking,
                                  "planning_ms": 1.0}
 
@@ -79,11 +79,12 @@ def test_estimator_updates_once_the_palm_has_travelled_5_mm():
 
 
 def _controller(planner, motion, on_infeasible="stop", horizon=5):
-    system = HandController(lambda: planner, motion, ACTIONS, _belief(), horizon=horizon,
+    system = HandController(lambda: planner, motion, ACTIONS, _belief(), 2, horizon=horizon,
                             on_infeasible=on_infeasible, check_period_s=0.02)
     context = system.CreateDefaultContext()
     system.GetInputPort("belief").FixValue(context, _belief())
     system.GetInputPort("contact_seen").FixValue(context, [1.0])
+    system.GetInputPort("sensor_contact").FixValue(context, [0.0, 1.0])
     executor = np.zeros(EXECUTOR_STATE_SIZE)
     executor[-1] = 1.0  # idle
     port = system.GetInputPort("executor_state").FixValue(context, executor)
@@ -98,7 +99,7 @@ def test_controller_sends_the_best_feasible_action_when_the_executor_is_idle():
     np.testing.assert_array_equal(system.GetOutputPort("command").Eval(context), [1, 0])
     decision = system.decisions(context)[0]
     assert decision.action == 0 and decision.rejected == [(3, "action 3 collides")]
-    assert planner.calls == [True]
+    assert planner.calls == [(True, None, (False, True))]
 
 
 def test_controller_stops_when_the_preferred_action_is_infeasible():
@@ -119,7 +120,7 @@ def test_controller_waits_while_the_executor_moves():
 
 def test_controller_rejects_unknown_infeasibility_rule():
     with pytest.raises(ValueError, match="on_infeasible"):
-        HandController(FakePlanner, FakeMotion(), ACTIONS, _belief(), horizon=1,
+        HandController(FakePlanner, FakeMotion(), ACTIONS, _belief(), 2, horizon=1,
                        on_infeasible="clip")
 
 

@@ -6,7 +6,7 @@ import pytest
 
 from estimation.belief import ParticleBelief
 from planning.hand_beliefs import GaussianBelief
-from planning.hand_planner import HandPlanner
+from planning.hand_planner import HandPlanner, ThesisHandPlanner
 from planning.hand_policy import qmdp_vectors
 from planning.hand_solution import HandSolveSettings, solve_hand_problem
 from planning.point_based import AlphaVectorPolicy
@@ -61,6 +61,29 @@ def test_contact_switches_to_the_post_contact_policy_for_good(small_hand_model, 
     _, stats = planner.plan(belief, contact_seen=False, rng=np.random.default_rng(4))
     assert stats["phase"] == "post-contact"
     assert stats["planning_ms"] >= 0
+
+
+def test_thesis_planner_tracks_its_own_belief_with_the_executed_actions(small_hand_model,
+                                                                        qmdp):
+    """Without a search it acts on the discrete Bayes filter: the same actions as
+    HandPolicy fed the same actions and readings."""
+    from planning.hand_policy import HandPolicy
+
+    m = small_hand_model
+    belief = _belief(m, (0.15, 0.0, 0.0))
+    planner = ThesisHandPlanner(m, qmdp, precontact=None)
+    reference = HandPolicy(m, qmdp)
+    reference.reset(belief, rng=np.random.default_rng(0))
+    rng = np.random.default_rng(5)
+    action, stats = planner.plan(belief, contact_seen=False, rng=rng)
+    assert action == reference.act() and stats["phase"] == "post-contact"
+    for reading in ([False, False], [True, False], [False, False]):
+        reading = np.array(reading)
+        reference.observe(action, reading, rng=rng)
+        action, stats = planner.plan(belief, contact_seen=False, rng=rng, last_action=action,
+                                     reading=reading)
+        assert action == reference.act() and stats["ranking"][0] == action
+    np.testing.assert_allclose(planner.policy.discrete, reference.discrete)
 
 
 def test_solve_settings_key_names_the_budget_not_its_spelling():
