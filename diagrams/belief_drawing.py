@@ -39,7 +39,8 @@ class BeliefDrawer(LeafSystem):
         outline: (V, 2) the object's outline about its centre (m).
         goal: (2, 2) [[x_lo, y_lo], [x_hi, y_hi]] the goal region in the hand frame (m).
         sensor_points: (S, 2) where to mark each sensor, hand frame (m).
-        height_m: drawing height (m), just above the table.
+        height_m: drawing height (m): just above the object's top, so that the belief is
+            seen from above rather than hidden under the object.
         particles: how many particles to outline.
         period_s: drawing period (s).
     """

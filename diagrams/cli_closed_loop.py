@@ -109,8 +109,11 @@ def _run(args) -> int:
     s = episode.summary
     outcome = "SUCCESS: the object is in the goal" if s["success"] else \
         f"FAILURE: the object is {100 * s['final_distance_to_goal_m']:.1f} cm from the goal"
+    stop = s["stop_reason"]
+    if stop == "no_feasible_action":
+        stop = f"the next action is infeasible: {s['rejections'][-1]['reason']}"
     print(f"{args.policy}/{args.estimator}, belief {args.belief}, seed {args.seed}: {outcome} "
-          f"after {s['steps']} steps (stopped: {s['stop_reason']}); estimator RMSE mean "
+          f"after {s['steps']} steps (stopped: {stop}); estimator RMSE mean "
           f"{100 * s['estimator_rmse_m']['mean']:.1f} cm; planning median "
           f"{s['planning_ms_median']:.1f} ms; {s['sim_time_s']:.1f} s simulated in "
           f"{s['wall_time_s']:.1f} s")

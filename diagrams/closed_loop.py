@@ -243,7 +243,8 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
         visualizer = add_meshcat(builder, plant, scene_graph, meshcat)
         drawer = builder.AddSystem(BeliefDrawer(
             meshcat, world.shape.vertices[0][world.shape.valid[0]], goal,
-            _sensor_points(world), initial, height_m=herb.table_top_z_m + 0.002))
+            _sensor_points(world), initial,
+            height_m=herb.table_top_z_m + scene.object.height_m + 0.01))
         builder.Connect(estimator.GetOutputPort("belief"), drawer.GetInputPort("belief"))
         builder.Connect(poses.GetOutputPort("palm_pose"), drawer.GetInputPort("palm_pose"))
         builder.Connect(tactile.GetOutputPort("sensor_contact"),

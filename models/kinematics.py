@@ -27,7 +27,7 @@ from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.planning import RobotDiagramBuilder
 from pydrake.solvers import Solve
 
-from models.herb import NUM_ARM_JOINTS
+from models.herb import NUM_ARM_JOINTS, planar_palm_pose
 from models.pose import wrap_angle
 from models.scene import SceneSpec
 from models.tactile import TactileLayout
@@ -106,9 +106,7 @@ class PlanarHandIK:
         """Forward kinematics: (x, y, theta) of the palm for arm angles (7,), and its height."""
         self.plant.SetPositions(self._plant_context, self.full_positions(q_arm))
         X = self.world.hand.palm_frame.CalcPoseInWorld(self._plant_context)
-        z_palm = X.rotation().col(2)  # push direction
-        return np.array([X.translation()[0], X.translation()[1],
-                         np.arctan2(z_palm[1], z_palm[0]), X.translation()[2]])
+        return np.append(planar_palm_pose(X), X.translation()[2])
 
     def solve(self, pose: np.ndarray, seed: np.ndarray) -> IKResult:
         """Arm angles that put the palm at planar ``pose`` (x m, y m, theta rad).
