@@ -33,6 +33,7 @@ import scipy.sparse as sp
 from planning.point_based_kernels import (
     alpha_products,
     best_backup,
+    compact_alphas,
     expand,
     new_alpha,
     sawtooth,
@@ -163,6 +164,11 @@ class PointBasedSolver:
         self.points = _UpperPoints()
         self.visited: list[tuple[np.ndarray, np.ndarray]] = []  # (support, probabilities)
         self._new_alphas = 0
+        # at each visited belief pruning has compared: its best value and vector so far,
+        # over the vectors [0, _pruned_alphas) that stood after the last pruning
+        self._best_value = np.zeros(0)
+        self._best_index = np.zeros(0, dtype=np.int64)
+        self._pruned_alphas = 0
         self.report = SolverReport()
 
     @property
@@ -291,22 +297,43 @@ class PointBasedSolver:
             self.points.add(support, probs, value - float(self.corner[support] @ probs))
 
     def _prune(self) -> None:
-        """Keep the alpha-vectors that are best at some visited belief (and the blind ones)."""
+        """Keep the alpha-vectors that are best at some visited belief (and the blind ones).
+
+        Incremental: each visited belief keeps its best alpha-vector from the last pruning,
+        so only the vectors added since are compared at the beliefs seen before, and only
+        the beliefs visited since are compared with every vector. The result is that of
+        comparing all beliefs with all vectors, at a fraction of the products."""
         self._new_alphas = 0
         if not self.visited:
             return
-        S = self.m.shape[0]
+        S, A, _ = self.m.shape
+        count, fresh_from = self._alpha_count, self._pruned_alphas
+        seen = len(self._best_value)
         rows = np.concatenate([np.full(len(sup), i) for i, (sup, _) in enumerate(self.visited)])
         B = sp.csr_matrix((np.concatenate([p for _, p in self.visited]),
                            (rows, np.concatenate([sup for sup, _ in self.visited]))),
                           shape=(len(self.visited), S))
-        best = np.asarray((B @ self.alphas.T).argmax(axis=1)).ravel()
-        keep = set(best.tolist()) | set(range(self.m.shape[1]))
-        index = np.array(sorted(keep))
-        kept_alphas, kept_actions = self.alphas[index].copy(), self.alpha_actions[index].copy()
+        best_value = np.concatenate([self._best_value, np.full(len(self.visited) - seen,
+                                                               -np.inf)])
+        best_index = np.concatenate([self._best_index,
+                                     np.zeros(len(self.visited) - seen, dtype=np.int64)])
+        for beliefs, first in ((slice(0, seen), fresh_from), (slice(seen, None), 0)):
+            if first >= count or beliefs.start == len(self.visited):
+                continue
+            values = np.asarray(B[beliefs] @ self.alphas[first:count].T)
+            top = values.argmax(axis=1)
+            top_value = values[np.arange(len(values)), top]
+            better = top_value > best_value[beliefs]
+            best_value[beliefs] = np.where(better, top_value, best_value[beliefs])
+            best_index[beliefs] = np.where(better, first + top, best_index[beliefs])
+        index = np.array(sorted(set(best_index.tolist()) | set(range(A))))
+        renumber = np.full(count, -1, dtype=np.int64)
+        renumber[index] = np.arange(len(index))
+        compact_alphas(self._alpha_buffer.T, index)
+        self._action_buffer[:len(index)] = self._action_buffer[index]
         self._alpha_count = len(index)
-        self._alpha_buffer[:len(index)] = kept_alphas
-        self._action_buffer[:len(index)] = kept_actions
+        self._best_value, self._best_index = best_value, renumber[best_index]
+        self._pruned_alphas = len(index)
 
     # -- search
     def _explore(self, support: np.ndarray, probs: np.ndarray, epsilon: float,

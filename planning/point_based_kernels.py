@@ -163,3 +163,14 @@ def sawtooth(points, probs, starts, hi, excess, end, belief):  # pragma: no cove
         if ratio * excess[i] < best:
             best = ratio * excess[i]
     return best
+
+
+@numba.njit(cache=True)
+def compact_alphas(buffer_T, keep):  # pragma: no cover (compiled)
+    """Move the kept alpha-vectors to the front, in place: ``buffer_T`` (S, capacity) is the
+    transposed (C-ordered) view of the column-major alpha buffer and ``keep`` the sorted
+    indices to keep; each state's row is compacted where it lies in memory."""
+    for s in range(buffer_T.shape[0]):
+        row = buffer_T[s]
+        for j in range(len(keep)):
+            row[j] = row[keep[j]]

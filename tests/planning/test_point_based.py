@@ -57,3 +57,24 @@ def test_several_initial_beliefs_are_planned_for_together():
     assert policy.value(left) == pytest.approx(solver.lower(left))
     with pytest.raises(ValueError, match="columns"):
         solver.solve(1.0, initial_beliefs=np.ones((1, 3)) / 3)
+
+
+def test_incremental_pruning_keeps_the_best_vector_at_every_visited_belief():
+    """Pruning compares only what changed since the last pruning; the bound at every
+    visited belief must be what all the vectors together give."""
+    import scipy.sparse as sp
+
+    solver = PointBasedSolver(tag(), prune_every=25)
+    solver.solve(3.0)
+    S = solver.m.shape[0]
+    rows = np.concatenate([np.full(len(sup), i) for i, (sup, _) in enumerate(solver.visited)])
+    B = sp.csr_matrix((np.concatenate([p for _, p in solver.visited]),
+                       (rows, np.concatenate([sup for sup, _ in solver.visited]))),
+                      shape=(len(solver.visited), S))
+    before = np.asarray(B @ solver.alphas.T).max(axis=1)
+    solver._prune()
+    values = np.asarray(B @ solver.alphas.T)
+    np.testing.assert_allclose(values.max(axis=1), before, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(solver._best_value, before, rtol=0, atol=1e-9)
+    remembered = values[np.arange(len(values)), solver._best_index]
+    np.testing.assert_allclose(remembered, before, rtol=0, atol=1e-9)
