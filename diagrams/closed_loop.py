@@ -23,9 +23,10 @@ import time
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
-from pydrake.geometry import Meshcat
+from pydrake.geometry import Meshcat, MeshcatVisualizer
+from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import Diagram, DiagramBuilder
 from tqdm import tqdm
 
 from diagrams.belief_drawing import BeliefDrawer
@@ -46,6 +47,7 @@ from models.kinematics import PlanarHandIK
 from models.planar.se2 import compose, inverse
 from models.scene import PlanarPose, SceneSpec
 from models.tactile import SensorGroups, TactileLayout, TactileNoise
+from models.world import World
 from planning.hand_planner import HandPlanner, ThesisHandPlanner
 from planning.hand_pomdp import goal_region
 from planning.hand_solution import HandSolution
@@ -163,6 +165,86 @@ def make_filter(kind: str, world):
     return lambda: ManifoldParticleFilter(world, manifold)
 
 
+@dataclass
+class ClosedLoopDiagram:
+    """The built diagram and handles to its systems (``visualizer`` is ``None`` without
+    Meshcat)."""
+
+    diagram: Diagram
+    plant: MultibodyPlant
+    herb: World
+    tactile: TactileSensor
+    poses: PlanarPoses
+    estimator: HandEstimator
+    controller: HandController
+    executor: ActionExecutor
+    visualizer: MeshcatVisualizer | None
+
+
+def build_closed_loop(settings: EpisodeSettings, solution: HandSolution, scene: SceneSpec,
+                      ik: PlanarHandIK, q_start: np.ndarray, initial: ParticleBelief, *,
+                      meshcat: Meshcat | None = None, filter_factory=None
+                      ) -> ClosedLoopDiagram:
+    """Wire the diagram of the module docstring for ``scene`` (the object already placed),
+    the arm starting at ``q_start`` (7,) rad with the palm at the scene's hand start, and
+    the estimator starting from ``initial``."""
+    model, world = solution.model, solution.model.world
+    motion = HandMotionPlanner(ik)
+    builder = DiagramBuilder()
+    sim = SimulationConfig(time_step_s=settings.time_step_s)
+    layout = TactileLayout.load(settings.layout)
+    plant, scene_graph, herb = add_herb_plant(builder, scene, layout=layout, sim=sim)
+    groups = SensorGroups()
+    if len(groups.names) != world.sensor_count:
+        raise ValueError(f"{len(groups.names)} pooled sensors, but the planning model has "
+                         f"{world.sensor_count}")
+    tactile = builder.AddSystem(TactileSensor(layout, herb.hand.patch_geometry,
+                                              noise=settings.noise, seed=settings.seed,
+                                              groups=groups))
+    builder.Connect(plant.get_contact_results_output_port(), tactile.get_input_port())
+    poses = builder.AddSystem(PlanarPoses(plant, herb))
+    builder.Connect(plant.get_body_poses_output_port(), poses.get_input_port())
+    factory = filter_factory or make_filter(settings.estimator, world)
+    estimator = builder.AddSystem(HandEstimator(factory, initial, world.sensor_count,
+                                                seed=settings.seed, travel_m=settings.travel_m))
+    builder.Connect(tactile.GetOutputPort("sensor_contact"),
+                    estimator.GetInputPort("sensor_contact"))
+    builder.Connect(poses.GetOutputPort("palm_pose"), estimator.GetInputPort("palm_pose"))
+    actions = model.spec.action_vectors()
+    post_contact = solution.policies[settings.policy]
+    planner_type = HandPlanner if settings.planner_belief == "estimator" else ThesisHandPlanner
+    controller = builder.AddSystem(HandController(
+        lambda: planner_type(model, post_contact, settings.precontact), motion, actions,
+        initial, world.sensor_count, horizon=settings.horizon,
+        on_infeasible=settings.on_infeasible, seed=settings.seed))
+    executor = builder.AddSystem(ActionExecutor(motion, actions, scene.hand_start.as_array(),
+                                                q_start,
+                                                hand_speed_m_per_s=settings.hand_speed_m_per_s))
+    builder.Connect(estimator.GetOutputPort("belief"), controller.GetInputPort("belief"))
+    builder.Connect(estimator.GetOutputPort("contact_seen"),
+                    controller.GetInputPort("contact_seen"))
+    builder.Connect(executor.GetOutputPort("executor_state"),
+                    controller.GetInputPort("executor_state"))
+    builder.Connect(tactile.GetOutputPort("sensor_contact"),
+                    controller.GetInputPort("sensor_contact"))
+    builder.Connect(controller.GetOutputPort("command"), executor.GetInputPort("command"))
+    builder.Connect(executor.GetOutputPort("arm_desired_state"),
+                    plant.get_desired_state_input_port(herb.wam))
+    visualizer = None
+    if meshcat is not None:
+        visualizer = add_meshcat(builder, plant, scene_graph, meshcat)
+        drawer = builder.AddSystem(BeliefDrawer(
+            meshcat, world.shape.vertices[0][world.shape.valid[0]],
+            goal_region(world, model.spec), _sensor_points(world), initial,
+            height_m=herb.table_top_z_m + scene.object.height_m + 0.01))
+        builder.Connect(estimator.GetOutputPort("belief"), drawer.GetInputPort("belief"))
+        builder.Connect(poses.GetOutputPort("palm_pose"), drawer.GetInputPort("palm_pose"))
+        builder.Connect(tactile.GetOutputPort("sensor_contact"),
+                        drawer.GetInputPort("sensor_contact"))
+    return ClosedLoopDiagram(builder.Build(), plant, herb, tactile, poses, estimator,
+                             controller, executor, visualizer)
+
+
 def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
                 meshcat: Meshcat | None = None, progress: bool = True,
                 filter_factory=None) -> Episode:
@@ -196,65 +278,13 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
     if not first.feasible:
         raise InfeasibleStart(f"hand start {np.round(start, 3).tolist()}: {first.reason}")
     scene = replace(scene, object_pose=PlanarPose(*compose(start, true_rel)))
-    motion = HandMotionPlanner(ik)
-
-    builder = DiagramBuilder()
-    sim = SimulationConfig(time_step_s=settings.time_step_s)
-    layout = TactileLayout.load(settings.layout)
-    plant, scene_graph, herb = add_herb_plant(builder, scene, layout=layout, sim=sim)
-    groups = SensorGroups()
-    if len(groups.names) != world.sensor_count:
-        raise ValueError(f"{len(groups.names)} pooled sensors, but the planning model has "
-                         f"{world.sensor_count}")
-    tactile = builder.AddSystem(TactileSensor(layout, herb.hand.patch_geometry,
-                                              noise=settings.noise, seed=settings.seed,
-                                              groups=groups))
-    builder.Connect(plant.get_contact_results_output_port(), tactile.get_input_port())
-    poses = builder.AddSystem(PlanarPoses(plant, herb))
-    builder.Connect(plant.get_body_poses_output_port(), poses.get_input_port())
-    factory = filter_factory or make_filter(settings.estimator, world)
-    estimator = builder.AddSystem(HandEstimator(factory, initial, world.sensor_count,
-                                                seed=settings.seed, travel_m=settings.travel_m))
-    builder.Connect(tactile.GetOutputPort("sensor_contact"),
-                    estimator.GetInputPort("sensor_contact"))
-    builder.Connect(poses.GetOutputPort("palm_pose"), estimator.GetInputPort("palm_pose"))
-    actions = model.spec.action_vectors()
-    post_contact = solution.policies[settings.policy]
-    planner_type = HandPlanner if settings.planner_belief == "estimator" else ThesisHandPlanner
-    controller = builder.AddSystem(HandController(
-        lambda: planner_type(model, post_contact, settings.precontact), motion, actions,
-        initial, world.sensor_count, horizon=settings.horizon,
-        on_infeasible=settings.on_infeasible, seed=settings.seed))
-    executor = builder.AddSystem(ActionExecutor(motion, actions, start, first.q,
-                                                hand_speed_m_per_s=settings.hand_speed_m_per_s))
-    builder.Connect(estimator.GetOutputPort("belief"), controller.GetInputPort("belief"))
-    builder.Connect(estimator.GetOutputPort("contact_seen"),
-                    controller.GetInputPort("contact_seen"))
-    builder.Connect(executor.GetOutputPort("executor_state"),
-                    controller.GetInputPort("executor_state"))
-    builder.Connect(tactile.GetOutputPort("sensor_contact"),
-                    controller.GetInputPort("sensor_contact"))
-    builder.Connect(controller.GetOutputPort("command"), executor.GetInputPort("command"))
-    builder.Connect(executor.GetOutputPort("arm_desired_state"),
-                    plant.get_desired_state_input_port(herb.wam))
-    goal = goal_region(world, model.spec)
-    visualizer = None
-    if meshcat is not None:
-        visualizer = add_meshcat(builder, plant, scene_graph, meshcat)
-        drawer = builder.AddSystem(BeliefDrawer(
-            meshcat, world.shape.vertices[0][world.shape.valid[0]], goal,
-            _sensor_points(world), initial,
-            height_m=herb.table_top_z_m + scene.object.height_m + 0.01))
-        builder.Connect(estimator.GetOutputPort("belief"), drawer.GetInputPort("belief"))
-        builder.Connect(poses.GetOutputPort("palm_pose"), drawer.GetInputPort("palm_pose"))
-        builder.Connect(tactile.GetOutputPort("sensor_contact"),
-                        drawer.GetInputPort("sensor_contact"))
-    diagram = builder.Build()
-
-    context = diagram.CreateDefaultContext()
+    loop = build_closed_loop(settings, solution, scene, ik, first.q, initial, meshcat=meshcat,
+                             filter_factory=filter_factory)
+    plant, herb, visualizer = loop.plant, loop.herb, loop.visualizer
+    context = loop.diagram.CreateDefaultContext()
     plant.SetPositions(plant.GetMyMutableContextFromRoot(context),
                        herb.robot_positions(plant, first.q))
-    simulator = Simulator(diagram, context)
+    simulator = Simulator(loop.diagram, context)
     if meshcat is not None:
         meshcat.SetProperty("/Grid", "visible", False)
         meshcat.SetCameraPose(camera_in_world=[start[0] + 0.75, start[1] + 0.45, 1.2],
@@ -262,13 +292,45 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
         visualizer.StartRecording(False)
     simulator.Initialize()
 
+    wall = time.perf_counter()
+    trace, stop = _advance_until_done(loop, simulator, scene, model, settings, progress)
+    wall_s = time.perf_counter() - wall
+    html = None
+    if visualizer is not None:
+        visualizer.StopRecording()
+        visualizer.PublishRecording()
+        html = meshcat.StaticHtml()
+    arrays = {k: np.array(v) for k, v in trace.items()}
+    root = simulator.get_context()
+    decisions = loop.controller.decisions(loop.controller.GetMyContextFromRoot(root))
+    refused = loop.executor.motion(loop.executor.GetMyContextFromRoot(root)).refused
+    summary = _summary(settings, solution, arrays, decisions, goal_region(world, model.spec),
+                       stop, wall_s, refused)
+    return Episode(summary, arrays, _snapshots(decisions, arrays), html)
+
+
+def _snapshots(decisions: list, trace: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    times = np.array([d.time_s for d in decisions])
+    nearest = np.searchsorted(trace["time_s"], times).clip(0, len(trace["time_s"]) - 1)
+    return {"time_s": times,
+            "particles": np.array([np.asarray(d.belief.states) for d in decisions]),
+            "true_rel": trace["true_rel"][nearest]}
+
+
+def _advance_until_done(loop: ClosedLoopDiagram, simulator: Simulator, scene: SceneSpec,
+                        model, settings: EpisodeSettings, progress: bool
+                        ) -> tuple[dict[str, list], str]:
+    """Simulate in 0.05 s steps, recording the trace, until the episode ends; returns the
+    trace and why it ended."""
+    poses, estimator, tactile = loop.poses, loop.estimator, loop.tactile
+    controller, executor = loop.controller, loop.executor
+    actions = model.spec.action_vectors()
     longest = float(np.max(np.linalg.norm(actions[:, :2], axis=1)))
     limit_s = 1.0 + settings.horizon * (longest / settings.hand_speed_m_per_s + 0.6) + 30.0
     chunk = 0.05
     trace: dict[str, list] = {k: [] for k in ("time_s", "palm", "object", "true_rel", "mean",
                                               "rmse_m", "rmse_rad", "in_goal", "readings")}
     stop = "time_limit"
-    wall = time.perf_counter()
     bar = tqdm(total=settings.horizon, desc=f"episode ({settings.policy})", unit="decision",
                disable=not progress, leave=False)
     while simulator.get_context().get_time() < limit_s:
@@ -300,25 +362,7 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
             stop = "no_feasible_action" if decisions[-1].action < 0 else "horizon"
             break
     bar.close()
-    wall_s = time.perf_counter() - wall
-    html = None
-    if visualizer is not None:
-        visualizer.StopRecording()
-        visualizer.PublishRecording()
-        html = meshcat.StaticHtml()
-    arrays = {k: np.array(v) for k, v in trace.items()}
-    decisions = controller.decisions(controller.GetMyContextFromRoot(simulator.get_context()))
-    refused = executor.motion(executor.GetMyContextFromRoot(simulator.get_context())).refused
-    summary = _summary(settings, solution, arrays, decisions, goal, stop, wall_s, refused)
-    return Episode(summary, arrays, _snapshots(decisions, arrays), html)
-
-
-def _snapshots(decisions: list, trace: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    times = np.array([d.time_s for d in decisions])
-    nearest = np.searchsorted(trace["time_s"], times).clip(0, len(trace["time_s"]) - 1)
-    return {"time_s": times,
-            "particles": np.array([np.asarray(d.belief.states) for d in decisions]),
-            "true_rel": trace["true_rel"][nearest]}
+    return trace, stop
 
 
 def _last_motion_done(executor: ActionExecutor, root, decisions: list) -> bool:
