@@ -154,3 +154,33 @@ def test_executor_tracks_the_commanded_path_and_refuses_infeasible_commands():
     motion = system.motion(context)
     assert motion.decision == 2 and motion.refused == 1
     np.testing.assert_allclose(motion.pose, start_pose + ACTIONS[0])
+
+
+def test_planar_poses_reads_the_palm_and_the_object_from_body_poses():
+    from pydrake.math import RigidTransform, RotationMatrix
+    from pydrake.systems.framework import DiagramBuilder
+
+    from diagrams.closed_loop_systems import PlanarPoses
+    from diagrams.herb_diagram import add_herb_plant
+    from models.herb import X_W_palm
+    from models.scene import SceneSpec
+    from models.tactile import TactileLayout
+
+    scene = SceneSpec.load("closed_loop")
+    plant, _, herb = add_herb_plant(DiagramBuilder(), scene,
+                                    layout=TactileLayout.load("distal_links"))
+    system = PlanarPoses(plant, herb)
+    context = system.CreateDefaultContext()
+    poses = [RigidTransform()] * plant.num_bodies()
+    palm = herb.hand.palm_frame
+    X_WP = X_W_palm(np.array([0.7, -0.2, 0.3]), herb.palm_height_m)
+    poses[int(palm.body().index())] = X_WP @ palm.GetFixedPoseInBodyFrame().inverse()
+    tipped = RotationMatrix.MakeZRotation(0.4) @ RotationMatrix.MakeXRotation(0.2)
+    poses[int(herb.object_body.index())] = RigidTransform(tipped, [0.9, -0.1, 0.8])
+    system.get_input_port().FixValue(context, poses)
+    np.testing.assert_allclose(system.GetOutputPort("palm_pose").Eval(context),
+                               [0.7, -0.2, 0.3], atol=1e-12)
+    object_pose = system.GetOutputPort("object_pose").Eval(context)
+    np.testing.assert_allclose(object_pose, [0.9, -0.1, 0.4], atol=1e-12)
+    np.testing.assert_allclose(system.GetOutputPort("object_tilt").Eval(context), [0.2],
+                               atol=1e-12)
