@@ -44,6 +44,7 @@ from estimation.particle_filters import ConventionalParticleFilter, ManifoldPart
 from models.contact import SimulationConfig
 from models.hand_motion import HandMotionPlanner
 from models.kinematics import PlanarHandIK
+from models.objects import ObjectSpec
 from models.planar.se2 import compose, inverse
 from models.scene import PlanarPose, SceneSpec
 from models.tactile import SensorGroups, TactileLayout, TactileNoise
@@ -263,9 +264,10 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
     """
     model = solution.model
     world = model.world
-    if world.object_spec.name != settings.object_name:
+    pushed = ObjectSpec.load(settings.object_name).name  # a name or a path
+    if world.object_spec.name != pushed:
         raise ValueError(f"the planning model is for {world.object_spec.name!r}, the episode "
-                         f"pushes {settings.object_name!r}")
+                         f"pushes {pushed!r}")
     rng = np.random.default_rng([settings.seed, 0])
     mean, std = np.array(settings.belief_mean), np.array(settings.belief_std)
     true_rel = world.sample_gaussian(mean, std, 1, rng=rng)[0]

@@ -90,3 +90,9 @@ def test_drawer_draws_particles_mean_goal_and_sensors(meshcat):
     for path in ("/belief/particles/1", "/belief/mean", "/belief/goal",
                  "/belief/sensors/0/on", "/belief/sensors/1/off"):
         assert meshcat.HasPath(path)
+
+
+def test_an_episode_refuses_an_object_the_model_was_not_built_for(small_hand_solution):
+    solution, _, _ = small_hand_solution
+    with pytest.raises(ValueError, match="planning model is for 'small_box'"):
+        run_episode(EpisodeSettings(object_name="bottle"), solution, progress=False)
