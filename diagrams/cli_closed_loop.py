@@ -44,10 +44,13 @@ def _common(parser) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--horizon", type=int, default=30, help="decisions per episode")
     parser.add_argument("--particles", type=int, default=500)
-    parser.add_argument("--solve-seconds", type=float, default=60.0,
-                        help="point-based solver budget (s) when the policy is not cached")
-    parser.add_argument("--solve-trials", type=int, default=None,
-                        help="also stop the solver after this many trials (machine-independent)")
+    parser.add_argument("--solve-seconds", type=float, default=600.0,
+                        help="point-based solver wall-time cap (s) when the policy is not "
+                             "cached")
+    parser.add_argument("--solve-trials", type=int, default=400,
+                        help="stop the solver after this many search trials (about 60 s for "
+                             "the bottle; a trial budget makes the policy machine-independent; "
+                             "0: no trial budget)")
     parser.add_argument("--plan-seconds", type=float, default=20.0,
                         help="pre-contact search time limit (s; thesis: 20)")
     parser.add_argument("--cache", type=Path, default=DEFAULT_CACHE,
@@ -68,7 +71,7 @@ def _solution(args, object_name: str):
     from planning.hand_solution import HandSolveSettings, solve_hand_problem
 
     settings = HandSolveSettings(object_name=object_name, solve_seconds=args.solve_seconds,
-                                 solve_trials=args.solve_trials)
+                                 solve_trials=args.solve_trials or None)
     solution = solve_hand_problem(settings, cache_dir=args.cache,
                                   progress=not args.no_progress)
     origin = "loaded from" if solution.loaded_from_cache else "solved and saved in"

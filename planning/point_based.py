@@ -110,6 +110,7 @@ class SolverReport:
     """Bounds at the initial belief over time: rows of (elapsed s, lower, upper)."""
 
     history: list[tuple[float, float, float]] = field(default_factory=list)
+    trials: int = 0
     backups: int = 0
     alpha_count: int = 0
     upper_points: int = 0
@@ -418,6 +419,7 @@ class PointBasedSolver:
                 record(*bounds())
                 last = time.perf_counter()
         record(*bounds())
+        self.report.trials = trials
         self.report.alpha_count = len(self.alphas)
         self.report.upper_points = len(self.points)
         return AlphaVectorPolicy(self.alphas.copy(), self.alpha_actions.copy(),

@@ -96,3 +96,12 @@ def test_an_episode_refuses_an_object_the_model_was_not_built_for(small_hand_sol
     solution, _, _ = small_hand_solution
     with pytest.raises(ValueError, match="planning model is for 'small_box'"):
         run_episode(EpisodeSettings(object_name="bottle"), solution, progress=False)
+
+
+def test_run_command_rejects_bad_settings_before_any_work(tmp_path, capsys):
+    from diagrams.cli import main
+
+    assert main(["run", "--particles", "2", "--out", str(tmp_path)]) == 2
+    assert "particles must be >= 10" in capsys.readouterr().err
+    assert main(["experiment", "closedloop", "--trials", "0", "--out", str(tmp_path)]) == 2
+    assert "--trials must be >= 1" in capsys.readouterr().err
