@@ -19,7 +19,7 @@ from collections import OrderedDict
 
 import numpy as np
 
-from models.kinematics import JointPath, PlanarHandIK
+from models.kinematics import JointPath, PlanarHandIK, solve_chain
 from models.planar.se2 import compose
 
 CACHE_SIZE = 32
@@ -77,19 +77,13 @@ class HandMotionPlanner:
     def _solve(self, pose_W, q, action_H) -> JointPath:
         length = max(float(np.linalg.norm(action_H[:2])), 1e-12)
         count = max(1, int(np.ceil(length / self.step_m - 1e-9)))
-        poses, qs = [pose_W], [q]
+        targets = world_target(pose_W, action_H * (np.arange(1, count + 1) / count)[:, None])
         table = self.ik.world.scene.table
-        for k in range(1, count + 1):
-            target = world_target(pose_W, action_H * k / count)
-            if not table.contains(target[0], target[1], self.table_margin_m):
-                return JointPath(np.array(poses), np.array(qs), False,
-                                 f"the palm would leave the table at ({target[0]:.3f}, "
-                                 f"{target[1]:.3f}) m")
-            result = self.ik.solve(target, qs[-1])
-            if not result.feasible:
-                return JointPath(np.array(poses), np.array(qs), False,
-                                 f"pose {k} of {count} ({target[0]:.3f}, {target[1]:.3f}) m: "
-                                 f"{result.reason}")
-            poses.append(target)
-            qs.append(result.q)
-        return JointPath(np.array(poses), np.array(qs), True)
+        on_table = [table.contains(x, y, self.table_margin_m) for x, y, _ in targets]
+        leaves = on_table.index(False) if not all(on_table) else count
+        path = solve_chain(self.ik, pose_W, q, targets[:leaves])
+        if not path.feasible or leaves == count:
+            return path
+        x, y = targets[leaves, :2]
+        return JointPath(path.poses, path.q, False,
+                         f"the palm would leave the table at ({x:.3f}, {y:.3f}) m")

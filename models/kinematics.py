@@ -225,13 +225,25 @@ def straight_push_path(
     start_pose = np.asarray(start_pose, dtype=float)
     count = max(1, int(np.ceil(distance_m / step_m - 1e-9)))
     heading = np.array([np.cos(start_pose[2]), np.sin(start_pose[2]), 0.0])
-    poses, qs = [start_pose], [np.asarray(q_start, dtype=float)]
-    for k in range(1, count + 1):
-        pose = start_pose + heading * min(k * step_m, distance_m)
+    steps = np.minimum(np.arange(1, count + 1) * step_m, distance_m)
+    return solve_chain(ik, start_pose, q_start, start_pose + steps[:, None] * heading)
+
+
+def solve_chain(ik: PlanarHandIK, start_pose: np.ndarray, q_start: np.ndarray,
+                targets: np.ndarray) -> JointPath:
+    """Solve IK at each of ``targets`` (N, 3) in turn, each warm-started from the previous
+    solution (the first from ``q_start`` (7,) at ``start_pose`` (3,)).
+
+    Returns:
+        The path from the start through the solved targets; at the first infeasible target
+        it stops, with ``feasible=False`` and the reason (which target, where, why).
+    """
+    poses, qs = [np.asarray(start_pose, dtype=float)], [np.asarray(q_start, dtype=float)]
+    for k, pose in enumerate(np.asarray(targets, dtype=float), start=1):
         result = ik.solve(pose, qs[-1])
         if not result.feasible:
             return JointPath(np.array(poses), np.array(qs), False,
-                             f"pose {k} of {count} ({pose[0]:.3f}, {pose[1]:.3f}) m: "
+                             f"pose {k} of {len(targets)} ({pose[0]:.3f}, {pose[1]:.3f}) m: "
                              f"{result.reason}")
         poses.append(pose)
         qs.append(result.q)

@@ -54,3 +54,8 @@ def test_unreachable_and_off_table_actions_are_reported_not_clipped(closed_loop_
 def test_bad_step_is_rejected(closed_loop_ik):
     with pytest.raises(ValueError, match="step_m"):
         HandMotionPlanner(closed_loop_ik, step_m=0.0)
+
+
+def test_negative_posture_weight_is_rejected():
+    with pytest.raises(ValueError, match="posture_weight must be >= 0"):
+        PlanarHandIK(SceneSpec.load("closed_loop"), posture_weight=-0.1)
