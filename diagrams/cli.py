@@ -67,6 +67,9 @@ def main(argv: list[str] | None = None) -> int:
         "pomdp", help="point-based solver bounds on Tag and RockSample(7,8)")
     pomdp_bench.add_argument("--quick", action="store_true", help="stop at 30 s")
     pomdp_bench.add_argument("--json", type=Path, default=None)
+    pomdp_bench.add_argument("--trial-rule", choices=["sarsop", "hsvi"], default="sarsop",
+                             help="where the solver's trials stop (HSVI2's rule: the "
+                                  "comparison)")
 
     experiment = commands.add_parser("experiment", help="studies that reproduce the seeds")
     studies = experiment.add_subparsers(dest="study", required=True)
@@ -124,6 +127,8 @@ def main(argv: list[str] | None = None) -> int:
     solve.add_argument("file", type=Path)
     solve.add_argument("--seconds", type=float, default=60.0, help="solver budget (s)")
     solve.add_argument("--out", type=Path, default=None, help="write the policy (.npz)")
+    solve.add_argument("--trial-rule", choices=["sarsop", "hsvi"], default="sarsop",
+                       help="where the solver's trials stop")
 
     commands.add_parser("scenes", help="list built-in scenes, objects and tactile layouts")
     cli_push.add_commands(commands, studies, bench_kinds)
@@ -154,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "bench" and args.bench == "pomdp":
             from experiments.pomdp_bench import run_pomdp_bench
 
-            report = run_pomdp_bench(quick=args.quick)
+            report = run_pomdp_bench(quick=args.quick, trial_rule=args.trial_rule)
             if args.json:
                 args.json.write_text(json.dumps(report, indent=2) + "\n")
             return 0
@@ -189,7 +194,7 @@ def _pomdp(args: argparse.Namespace) -> int:
     if args.seconds <= 0:
         raise ValueError(f"--seconds must be > 0, got {args.seconds}")
     model = read_pomdp(args.file)
-    solver = PointBasedSolver(model)
+    solver = PointBasedSolver(model, trial_rule=args.trial_rule)
     policy = solver.solve(args.seconds)
     lower, upper = solver.report.history[-1][1:]
     print(f"{args.file}: bounds at the initial belief after {args.seconds:g} s: "

@@ -29,7 +29,7 @@ from planning.hand_pomdp import HandPOMDP, build_hand_pomdp
 from planning.point_based import AlphaVectorPolicy, PointBasedSolver
 from planning.qmdp import solve_mdp
 
-CACHE_VERSION = 1
+CACHE_VERSION = 2  # 2: the point-based solver samples by SARSOP's rule
 POLICIES = ("qmdp", "pomdp")
 
 
