@@ -18,8 +18,9 @@ anytime, with both value bounds.
     its gap is below ``kappa eps / g^t``. SARSOP's value prediction by binning is left
     out (the prediction is the upper bound).
   - ``"hsvi"``: HSVI2's rule, stop when the gap is below ``eps / g^t``. Trials are
-    shallower and the lower bound rises later (RockSample(7,8) at 10 s: 20.4 to 20.6 with
-    it, 20.7 to 21.1 with the SARSOP rule; ``cmanip bench pomdp --trial-rule``).
+    shallower and the lower bound tends to rise later (RockSample(7,8) at 10 s, three runs
+    with ``gap_fraction`` 0.48, 0.5, 0.52: 20.72, 20.93, 20.59 with it; 20.73, 21.13,
+    21.04 with the SARSOP rule; ``cmanip bench pomdp --trial-rule``).
 - Pruning: every ``prune_every`` new vectors, the alpha-vectors that are best at none of
   the beliefs the search has visited (and are not blind policies) are dropped. Each vector
   remembers its plan: the vector each observation leads to. With ``keep_subplans``,
