@@ -336,7 +336,8 @@ class PointBasedSolver:
             self.points.add(support, probs, value - float(self.corner[support] @ probs))
 
     def _prune(self) -> None:
-        """Keep the alpha-vectors that are best at some visited belief (and the blind ones).
+        """Keep the alpha-vectors that are best at some visited belief, the blind ones and,
+        with ``keep_subplans``, every vector their plans lead to.
 
         Incremental: each visited belief keeps its best alpha-vector from the last pruning,
         so only the vectors added since are compared at the beliefs seen before, and only
