@@ -32,6 +32,10 @@ from pathlib import Path
 from diagrams import cli_closed_loop, cli_push
 from models.config import ConfigError, builtin_names
 
+# the point-based solver's trial rules (planning.point_based.PointBasedSolver.TRIAL_RULES;
+# not imported here, to keep `cmanip --help` free of the compiled solver)
+TRIAL_RULES = ("sarsop", "hsvi")
+
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="cmanip", description=__doc__.splitlines()[0])
@@ -67,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
         "pomdp", help="point-based solver bounds on Tag and RockSample(7,8)")
     pomdp_bench.add_argument("--quick", action="store_true", help="stop at 30 s")
     pomdp_bench.add_argument("--json", type=Path, default=None)
-    pomdp_bench.add_argument("--trial-rule", choices=["sarsop", "hsvi"], default="sarsop",
+    pomdp_bench.add_argument("--trial-rule", choices=TRIAL_RULES, default="sarsop",
                              help="where the solver's trials stop (HSVI2's rule: the "
                                   "comparison)")
 
@@ -127,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
     solve.add_argument("file", type=Path)
     solve.add_argument("--seconds", type=float, default=60.0, help="solver budget (s)")
     solve.add_argument("--out", type=Path, default=None, help="write the policy (.npz)")
-    solve.add_argument("--trial-rule", choices=["sarsop", "hsvi"], default="sarsop",
+    solve.add_argument("--trial-rule", choices=TRIAL_RULES, default="sarsop",
                        help="where the solver's trials stop")
 
     commands.add_parser("scenes", help="list built-in scenes, objects and tactile layouts")

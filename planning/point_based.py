@@ -284,7 +284,8 @@ class PointBasedSolver:
         """Predictions and posteriors for every action (see :class:`_Expansion`); they
         gather only the rows of T in the support."""
         return _Expansion(*expand(self._T_indptr, self._T_indices, self._T_data, self._Z,
-                                  support, probs, self._accumulator, self._touched))
+                                  support, probs, self._accumulator, self._touched),
+                          rewards=probs @ self.m.R[support])
 
     def _child_uppers(self, kids: _Expansion, actions: range | list[int]) -> np.ndarray:
         """(A, O) upper bounds of the possible children of ``actions`` (0 elsewhere)."""
@@ -294,25 +295,22 @@ class PointBasedSolver:
                             pts.next, pts.starts, pts.largest, pts.excess, pts.states,
                             pts.probs, self._scratch_per_action)
 
-    def _q_upper(self, support, probs, kids, ups: np.ndarray,
+    def _q_upper(self, kids: _Expansion, ups: np.ndarray,
                  actions: range | list[int] | None = None) -> np.ndarray:
         """(A,) upper-bound Q(b, a) from the children's upper bounds ``ups`` (A, O); only
         for ``actions`` (default: all; the others are left at +inf)."""
         q = np.full(kids.actions, np.inf)
-        chosen = range(kids.actions) if actions is None else actions
-        rewards = probs @ self.m.R[support]
-        for a in chosen:
-            q[a] = rewards[a] + self.gamma * kids.p[a] @ ups[a]
+        for a in range(kids.actions) if actions is None else actions:
+            q[a] = kids.rewards[a] + self.gamma * kids.p[a] @ ups[a]
         return q
 
     # -- backups
     def _backup_lower(self, support, probs, kids) -> None:
         """Point-based backup: the value of every action is computed on the supports; only
         the best action's alpha-vector is built over all states."""
-        rewards = probs @ self.m.R[support]
         best_value, best_action, best_choice = best_backup(
             self.store.view(), kids.offsets, kids.states, kids.predicted, kids.p, kids.post,
-            rewards, self.gamma)
+            kids.rewards, self.gamma)
         if best_value <= self._lower_local(support, probs) + 1e-9:
             return
         row = self.store.reserve(best_action, best_choice)
@@ -330,7 +328,7 @@ class PointBasedSolver:
         (the bound only tightens)."""
         q = q.copy()
         ups = self._child_uppers(kids, [explored])
-        q[explored] = self._q_upper(support, probs, kids, ups, [explored])[explored]
+        q[explored] = self._q_upper(kids, ups, [explored])[explored]
         value = float(q.max())
         if value < float(self._upper_local(support, probs[None, :])[0]) - 1e-9:
             self.points.add(support, probs, value - float(self.corner[support] @ probs))
@@ -395,7 +393,7 @@ class PointBasedSolver:
         self.report.nodes += 1
         kids = self._expand(support, probs)
         all_ups = self._child_uppers(kids, range(kids.actions))
-        q = self._q_upper(support, probs, kids, all_ups)
+        q = self._q_upper(kids, all_ups)
         a = int(np.argmax(q))
         nz, _, p, post = kids.action(a)
         possible = np.flatnonzero(p > 0)
@@ -409,7 +407,7 @@ class PointBasedSolver:
         if self.trial_rule == "sarsop":
             # SARSOP's L' = max(L, max_a Q_low(b, a)); with no belief tree we use V_low(b),
             # which is at most that (every alpha-vector is a backup), so trials run deeper
-            reward = float(probs @ self.m.R[support, a])
+            reward = float(kids.rewards[a])
             low_target = _child_target(max(low_target, lower), reward, p, lows, o,
                                        self.gamma)
             up_target = _child_target(max(up_target, lower + precision), reward, p, ups, o,
@@ -560,13 +558,15 @@ def _doubled(array: np.ndarray) -> np.ndarray:
 class _Expansion:
     """A belief's children, flat: action a owns entries ``offsets[a]:offsets[a + 1]`` of
     ``states`` (the prediction's support) and ``predicted`` (its probabilities), and those
-    columns of ``post`` (O, total), the posteriors; ``p`` (A, O) are p(o | b, a)."""
+    columns of ``post`` (O, total), the posteriors; ``p`` (A, O) are p(o | b, a);
+    ``rewards`` (A,) are R(b, a)."""
 
     offsets: np.ndarray
     states: np.ndarray
     predicted: np.ndarray
     p: np.ndarray
     post: np.ndarray
+    rewards: np.ndarray
 
     @property
     def actions(self) -> int:

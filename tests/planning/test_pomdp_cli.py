@@ -1,6 +1,7 @@
 """``cmanip pomdp write|solve``: models leave and enter the project as .pomdp files."""
 
 import numpy as np
+import pytest
 
 from diagrams.cli import main
 from planning.benchmarks import tag
@@ -32,3 +33,13 @@ def test_bad_files_are_reported_with_their_line(tmp_path, capsys):
     assert main(["pomdp", "solve", str(bad)]) == 2
     assert "bad.pomdp:6" in capsys.readouterr().err
     assert main(["pomdp", "solve", str(tmp_path / "missing.pomdp")]) == 2
+
+
+def test_the_cli_offers_exactly_the_solvers_trial_rules(capsys):
+    from diagrams.cli import TRIAL_RULES
+    from planning.point_based import PointBasedSolver
+
+    assert TRIAL_RULES == PointBasedSolver.TRIAL_RULES
+    with pytest.raises(SystemExit):
+        main(["pomdp", "solve", "x.pomdp", "--trial-rule", "greedy"])
+    assert "invalid choice: 'greedy'" in capsys.readouterr().err
