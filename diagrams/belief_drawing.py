@@ -13,9 +13,9 @@ from pydrake.common.value import AbstractValue
 from pydrake.geometry import Meshcat, Rgba, Sphere
 from pydrake.systems.framework import EventStatus, LeafSystem
 
-from estimation.belief import ParticleBelief
-from models.planar.se2 import compose
+from estimation.particles.belief import ParticleBelief
 from models.pose import planar_to_transform
+from models.se2 import compose
 
 PARTICLE_RGBA = Rgba(0.85, 0.35, 0.1, 0.35)
 MEAN_RGBA = Rgba(0.9, 0.1, 0.1, 1.0)

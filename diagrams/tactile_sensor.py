@@ -1,7 +1,7 @@
 """The ``TactileSensor`` LeafSystem: per-patch binary contact and force from contact results.
 
 A thin adapter: it maps the plant's contact results to (geometry -> patch, force) pairs and
-calls the pure functions of :mod:`models.tactile`. Readings are sampled periodically
+calls the pure functions of :mod:`models.herb.tactile`. Readings are sampled periodically
 (``period_s``) into discrete state, so they are piecewise constant like a real sensor's.
 The noise of update k is drawn from ``np.random.default_rng([seed, k])``: a simulation is
 reproducible from its seed, and re-evaluating an output never redraws it.
@@ -15,7 +15,7 @@ from pydrake.geometry import GeometryId
 from pydrake.multibody.plant import ContactResults
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
-from models.tactile import SensorGroups, TactileLayout, TactileNoise, patch_force_magnitudes
+from models.herb.tactile import SensorGroups, TactileLayout, TactileNoise, patch_force_magnitudes
 
 
 def contact_pairs_by_patch(

@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from diagrams.closed_loop import THESIS_BELIEF_MEANS, EpisodeSettings, make_filter, run_episode
+from diagrams.herb.closed_loop import THESIS_BELIEF_MEANS, EpisodeSettings, make_filter, run_episode
 from experiments.statistics import wilson_interval
-from planning.hand_solution import HandSolution
-from planning.precontact import PreContactSettings
+from planning.hand.precontact import PreContactSettings
+from planning.hand.solution import HandSolution
 
 THESIS_REAL_ROBOT = {"pomdp": {"successes": 27, "trials": 30},
                      "qmdp": {"successes": 20, "trials": 30}}
@@ -37,7 +37,7 @@ class ClosedLoopSettings:
         trials: episodes per policy.
         seed: master seed.
         estimator, planner_belief, horizon, particles, on_infeasible: as
-            :class:`~diagrams.closed_loop.EpisodeSettings`.
+            :class:`~diagrams.herb.closed_loop.EpisodeSettings`.
         plan_seconds: the pre-contact search's time limit (s).
         beliefs: the initial belief means (hand frame).
     """

@@ -9,7 +9,7 @@ import numpy as np
 from matplotlib.patches import Ellipse, Rectangle
 
 from experiments.plotting import save_figure
-from planning.hand_pomdp import goal_region
+from planning.hand.model import goal_region
 
 COLOURS = {"QMDP": "tab:orange", "POMDP": "tab:blue"}
 

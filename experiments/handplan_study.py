@@ -30,24 +30,24 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from estimation.manifolds import AnalyticManifold
+from estimation.hand.manifolds import AnalyticManifold
 from experiments.statistics import wilson_interval
 from experiments.timing import median_ms
 from models.planar.world import PlanarWorld
-from planning.cassandra import write_pomdp
-from planning.hand_beliefs import (
+from planning.hand.beliefs import (
     POST_CONTACT_DISTANCE_M,
     PRE_CONTACT_DISTANCE_M,
     GaussianBelief,
     belief_points,
 )
-from planning.hand_discretization import HandProblemSpec
-from planning.hand_policy import HandPolicy, qmdp_vectors
-from planning.hand_pomdp import HandPOMDP, build_hand_pomdp
-from planning.point_based import AlphaVectorPolicy, PointBasedSolver
-from planning.pomdp import simulate_returns
-from planning.precontact import PreContactPlan, PreContactPlanner, PreContactSettings
-from planning.qmdp import solve_mdp
+from planning.hand.discretization import HandProblemSpec
+from planning.hand.model import HandPOMDP, build_hand_pomdp
+from planning.hand.policy import HandPolicy, qmdp_vectors
+from planning.hand.precontact import PreContactPlan, PreContactPlanner, PreContactSettings
+from planning.pomdp.cassandra import write_pomdp
+from planning.pomdp.point_based import AlphaVectorPolicy, PointBasedSolver
+from planning.pomdp.qmdp import solve_mdp
+from planning.pomdp.tabular import simulate_returns
 
 PARTS = ("post-contact", "full", "coverage", "all")
 POLICIES = ("QMDP", "POMDP")

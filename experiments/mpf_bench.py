@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimation.belief import ParticleBelief
-from estimation.manifolds import AnalyticManifold
-from estimation.particle_filters import ConventionalParticleFilter, ManifoldParticleFilter
+from estimation.hand.manifolds import AnalyticManifold
+from estimation.particles.belief import ParticleBelief
+from estimation.particles.filters import ConventionalParticleFilter, ManifoldParticleFilter
 from experiments.timing import median_ms
 from models.planar.world import PlanarWorld
 

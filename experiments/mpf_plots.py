@@ -7,27 +7,60 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.mpf_study import aligned, summarise
 from experiments.plotting import save_figure as _save
 
 HAND_SPEED_M_PER_S = 0.01
 
 
-def plot_part(part: str, runs: list, out: Path) -> list[str]:
-    """Write the part's PNGs into ``out``; return their file names."""
+def plot_part(part: str, runs: list, summaries: list[dict], out: Path) -> list[str]:
+    """Write the part's PNGs into ``out``; return their file names.
+
+    Args:
+        part: the study part.
+        runs: (condition, trial results) per condition.
+        summaries: the study's summary of each condition, in the order of ``runs``.
+        out: the folder.
+    """
     if part in ("compare", "representations"):
         names = [_rmse_over_time(runs[0], out / f"{part}_rmse.png")]
         if part == "representations":
-            names.append(_failure_rates(runs[0], out / "representations_failures.png"))
+            names.append(_failure_rates(runs[0], summaries[0],
+                                        out / "representations_failures.png"))
         return names
     if part == "resolution":
-        return [_post_contact_by(runs, "sensors", "sensor layout", out / "resolution.png")]
+        return [_post_contact_by(runs, summaries, "sensors", "sensor layout",
+                                 out / "resolution.png")]
     if part == "rate":
-        return [_post_contact_by(runs, "update_interval_m", "travel between updates (mm)",
+        return [_post_contact_by(runs, summaries, "update_interval_m",
+                                 "travel between updates (mm)",
                                  out / "rate.png", scale=1000)]
     if part == "mixing":
-        return [_mixing(runs[0], out / "mixing.png")]
+        return [_mixing(runs[0], summaries[0], out / "mixing.png")]
     raise ValueError(part)
+
+
+def aligned(results: list, f: int, which: str, before: int = 10):
+    """RMSE of filter ``f`` aligned at first contact: offsets (T',), mean and 95 % half-width.
+
+    ``which`` is ``"m"`` or ``"rad"``.
+    """
+    touched = [r for r in results if r.contact_index is not None]
+    if not touched:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    T = touched[0].rmse_m.shape[1]
+    offsets = np.arange(-before, T)
+    stack = np.full((len(touched), len(offsets)), np.nan)
+    for i, r in enumerate(touched):
+        series = getattr(r, f"rmse_{which}")[f]
+        lo = max(0, r.contact_index - before)
+        seg = series[lo:]
+        start = before - (r.contact_index - lo)
+        stack[i, start:start + len(seg)] = seg
+    count = np.sum(np.isfinite(stack), axis=0)
+    keep = count >= max(2, len(touched) // 2)
+    mean = np.nanmean(stack[:, keep], axis=0)
+    std = np.nanstd(stack[:, keep], axis=0, ddof=1)
+    return offsets[keep], mean, 1.96 * std / np.sqrt(count[keep])
 
 
 def plot_world(world, path: Path, thetas_deg=(0.0, 45.0, 90.0)) -> str:
@@ -69,7 +102,8 @@ def _rmse_over_time(run, path: Path) -> str:
             t, mean, ci = aligned(results, f, which)
             style = "--" if spec.kind == "cpf" else "-"
             ax.plot(t * dt, mean * scale, style, label=spec.label)
-            ax.fill_between(t * dt, (mean - ci) * scale, (mean + ci) * scale, alpha=0.2)
+            ax.fill_between(t * dt, np.maximum(mean - ci, 0.0) * scale, (mean + ci) * scale,
+                            alpha=0.2)
     axes[0].set_ylabel("position RMSE (cm)")
     axes[1].set_ylabel("orientation RMSE (deg)")
     axes[1].set_xlabel("time since first contact (s)")
@@ -83,9 +117,9 @@ def _rmse_over_time(run, path: Path) -> str:
     return _save(fig, path)
 
 
-def _failure_rates(run, path: Path) -> str:
+def _failure_rates(run, condition_summary: dict, path: Path) -> str:
     condition, results = run
-    summary = summarise(condition, results)["filters"]
+    summary = condition_summary["filters"]
     labels = [k for k, v in summary.items() if "sampling_failure_rate" in v]
     touched = [r for r in results if r.contact_index is not None]
     rates, cis = [], []
@@ -108,11 +142,12 @@ def _failure_rates(run, path: Path) -> str:
     return _save(fig, path)
 
 
-def _post_contact_by(runs, key: str, xlabel: str, path: Path, scale: float = 1.0) -> str:
+def _post_contact_by(runs, condition_summaries: list[dict], key: str, xlabel: str, path: Path,
+                     scale: float = 1.0) -> str:
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     xs = [c.extra[key] for c, _ in runs]
     positions = np.arange(len(xs))
-    summaries = [summarise(c, r)["filters"] for c, r in runs]
+    summaries = [s["filters"] for s in condition_summaries]
     for spec in runs[0][0].filters:
         for ax, field, unit in ((axes[0], "post_contact_rmse_cm", "cm"),
                                 (axes[1], "post_contact_rmse_deg", "deg")):
@@ -130,9 +165,9 @@ def _post_contact_by(runs, key: str, xlabel: str, path: Path, scale: float = 1.0
     return _save(fig, path)
 
 
-def _mixing(run, path: Path) -> str:
-    condition, results = run
-    summary = summarise(condition, results)["filters"]
+def _mixing(run, condition_summary: dict, path: Path) -> str:
+    condition, _ = run
+    summary = condition_summary["filters"]
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     mixes = [s for s in condition.filters if s.kind != "cpf"]
     phis = [s.mixing_rate for s in mixes]

@@ -24,13 +24,14 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from estimation.belief import ParticleBelief
-from estimation.manifolds import (
+from estimation.hand.manifolds import (
     AnalyticManifold,
     RejectionSampledManifold,
     TrajectoryRolloutManifold,
 )
-from estimation.particle_filters import ConventionalParticleFilter, ManifoldParticleFilter
+from estimation.particles.belief import ParticleBelief
+from estimation.particles.filters import ConventionalParticleFilter, ManifoldParticleFilter
+from experiments.mpf_plots import plot_part, plot_world
 from models.planar.world import PlanarWorld
 
 PARTS = ("compare", "resolution", "rate", "representations", "mixing")
@@ -275,30 +276,6 @@ def _parameters(settings: TrialSettings) -> dict:
     return p
 
 
-def aligned(results: list[TrialResult], f: int, which: str, before: int = 10):
-    """RMSE of filter ``f`` aligned at first contact: offsets (T',), mean and 95 % half-width.
-
-    ``which`` is ``"m"`` or ``"rad"``.
-    """
-    touched = [r for r in results if r.contact_index is not None]
-    if not touched:
-        return np.zeros(0), np.zeros(0), np.zeros(0)
-    T = touched[0].rmse_m.shape[1]
-    offsets = np.arange(-before, T)
-    stack = np.full((len(touched), len(offsets)), np.nan)
-    for i, r in enumerate(touched):
-        series = getattr(r, f"rmse_{which}")[f]
-        lo = max(0, r.contact_index - before)
-        seg = series[lo:]
-        start = before - (r.contact_index - lo)
-        stack[i, start:start + len(seg)] = seg
-    count = np.sum(np.isfinite(stack), axis=0)
-    keep = count >= max(2, len(touched) // 2)
-    mean = np.nanmean(stack[:, keep], axis=0)
-    std = np.nanstd(stack[:, keep], axis=0, ddof=1)
-    return offsets[keep], mean, 1.96 * std / np.sqrt(count[keep])
-
-
 # -------------------------------------------------------------------------------- the parts
 
 def conditions_for(part: str, base: TrialSettings) -> list[Condition]:
@@ -324,8 +301,6 @@ def conditions_for(part: str, base: TrialSettings) -> list[Condition]:
 def run_part(part: str, base: TrialSettings, trials: int, seed: int, workers: int, out: Path,
              progress: bool = True) -> dict:
     """Run a part, write ``out/summary.json`` and its figures, return the summary."""
-    from experiments.mpf_plots import plot_part, plot_world
-
     if trials < 2:
         raise ValueError(f"--trials must be at least 2 (for confidence intervals), got {trials}")
     out.mkdir(parents=True, exist_ok=True)
@@ -341,7 +316,7 @@ def run_part(part: str, base: TrialSettings, trials: int, seed: int, workers: in
     else:
         summary["filters"] = {f"{label}@{c['name']}": v for c in summary["conditions"]
                               for label, v in c["filters"].items()}
-    summary["figures"] = plot_part(part, runs, out) + [
+    summary["figures"] = plot_part(part, runs, summary["conditions"], out) + [
         plot_world(_world(base.object, base.sensors), out / "world.png")]
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary

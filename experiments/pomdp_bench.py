@@ -27,14 +27,14 @@ import numpy as np
 
 from experiments.timing import median_ms
 from models.planar.world import PlanarWorld
-from planning.benchmarks import rock_sample, tag
-from planning.hand_beliefs import belief_points
-from planning.hand_discretization import HandProblemSpec
-from planning.hand_policy import qmdp_vectors
-from planning.hand_pomdp import build_hand_pomdp
-from planning.point_based import LookaheadPolicy, PointBasedSolver
-from planning.pomdp import belief_update, simulate_value
-from planning.qmdp import solve_mdp
+from planning.hand.beliefs import belief_points
+from planning.hand.discretization import HandProblemSpec
+from planning.hand.model import build_hand_pomdp
+from planning.hand.policy import qmdp_vectors
+from planning.pomdp.benchmarks import rock_sample, tag
+from planning.pomdp.point_based import LookaheadPolicy, PointBasedSolver
+from planning.pomdp.qmdp import solve_mdp
+from planning.pomdp.tabular import belief_update, simulate_value
 
 CHECKPOINTS_S = (10, 30, 60, 150, 300)
 

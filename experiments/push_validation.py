@@ -4,7 +4,7 @@ simulation of the same straight pushes.
 Cases: the box starts ``gap`` ahead of the fingertips at lateral offsets and orientations
 of a grid (default 5 x 4 = 20 cases); HERB's hand pushes it straight for
 ``push_distance_m``. Drake simulates the whole arm, hand and box on the table
-(:func:`diagrams.straight_push.run_straight_push`); the planar model pushes the box with
+(:func:`diagrams.herb.straight_push.run_straight_push`); the planar model pushes the box with
 the friction coefficient Drake uses between hand and box (Drake's combination
 ``2 mu_h mu_o / (mu_h + mu_o)``) and the limit-surface radius ``c`` of a uniform pressure
 over the box's footprint (the mean distance of the footprint from its centre). Reported
@@ -27,13 +27,13 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from models.contact import HAND_MATERIAL  # noqa: E402
+from models.herb.scene import PlanarPose, SceneSpec  # noqa: E402
+from models.herb.tactile import TactileLayout, TactileNoise  # noqa: E402
 from models.planar.polygon import signed_distances  # noqa: E402
 from models.planar.pushing import PushingParameters  # noqa: E402
-from models.planar.se2 import compose, inverse  # noqa: E402
 from models.planar.world import PlanarWorld  # noqa: E402
 from models.pose import wrap_angle  # noqa: E402
-from models.scene import PlanarPose, SceneSpec  # noqa: E402
-from models.tactile import TactileLayout, TactileNoise  # noqa: E402
+from models.se2 import compose, inverse  # noqa: E402
 
 LATERAL_OFFSETS_M = (-0.06, -0.03, 0.0, 0.03, 0.06)
 ORIENTATIONS_DEG = (0.0, 20.0, -35.0, 60.0)
@@ -60,7 +60,7 @@ def run_push_validation(out: Path, *, push_distance_m: float = 0.15, gap_m: floa
                         still_deg: float = 1.0, seed: int = 0,
                         progress: bool = True) -> dict:
     """Run every case in Drake and in the planar model; write summary.json and a plot."""
-    from diagrams.straight_push import run_straight_push
+    from diagrams.herb.straight_push import run_straight_push
 
     scene = SceneSpec.load("empty")
     mu = combined_friction(HAND_MATERIAL.mu_dynamic, scene.object.material.mu_dynamic)

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from diagrams.straight_push import run_straight_push
+from diagrams.herb.straight_push import run_straight_push
 from models.contact import SimulationConfig
+from models.herb.scene import SceneSpec
+from models.herb.tactile import TactileLayout
 from models.pose import wrap_angle
-from models.scene import SceneSpec
-from models.tactile import TactileLayout
 
 
 def run_timestep_bench(steps_s: list[float], *, repeats: int = 3,

@@ -16,24 +16,24 @@ from pathlib import Path
 
 import numpy as np
 
-from estimation.pushing_filters import PushingEKF
-from estimation.pushing_inputs import PushingSteps
-from estimation.pushing_noise import identify_from_runs
-from estimation.visuotactile_smoother import (
+from estimation.pushing.filters import PushingEKF
+from estimation.pushing.inputs import PushingSteps
+from estimation.pushing.noise import identify_from_runs
+from estimation.pushing.smoother import (
     SmootherSettings,
     VisuoTactileSmoother,
     recommended_settings,
 )
 from models.objects import ObjectSpec
-from models.push_log import PushLog
+from models.pusher.log import PushLog
 
 
 def _log(path: Path | None, seed: int) -> PushLog:
     if path is not None:
         return PushLog.read(path)
-    from diagrams.pusher_slider_sim import simulate_push
-    from models.push_procedure import standard_procedure
-    from models.pusher_slider import PusherSliderRig
+    from diagrams.pusher.simulation import simulate_push
+    from models.pusher.procedure import standard_procedure
+    from models.pusher.rig import PusherSliderRig
 
     print("simulating the standard procedure (rect1, plywood) ...")
     return simulate_push(PusherSliderRig.load(), ObjectSpec.load("rect1"),

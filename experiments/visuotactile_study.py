@@ -32,19 +32,19 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from estimation.pushing_costs import limit_surface_c
-from estimation.pushing_filters import PushingEKF, vision_only
-from estimation.pushing_inputs import PushingSteps, rmse
-from estimation.pushing_noise import PushingNoise, identify_from_runs
-from estimation.visuotactile_smoother import (
+from estimation.pushing.costs import limit_surface_c
+from estimation.pushing.filters import PushingEKF, vision_only
+from estimation.pushing.inputs import PushingSteps, rmse
+from estimation.pushing.noise import PushingNoise, identify_from_runs
+from estimation.pushing.smoother import (
     SmootherSettings,
     VisuoTactileSmoother,
     recommended_settings,
 )
 from models.objects import ObjectSpec
-from models.push_log import PushLog
-from models.push_procedure import standard_procedure
-from models.pusher_slider import PusherSliderRig
+from models.pusher.log import PushLog
+from models.pusher.procedure import standard_procedure
+from models.pusher.rig import PusherSliderRig
 
 PARTS = ("noise", "methods", "shapes", "surfaces", "costs", "timing")
 SHAPES = ("rect1", "ellip2", "butter")
@@ -89,7 +89,7 @@ def simulated_log(settings: VisuotactileSettings, object_name: str, surface: str
     path = logs / f"{'train_' if training else ''}{object_name}_{surface}_{seed}_{trial}.csv"
     if path.is_file():
         return PushLog.read(path)
-    from diagrams.pusher_slider_sim import simulate_push  # Drake only when simulating
+    from diagrams.pusher.simulation import simulate_push  # Drake only when simulating
 
     rng = np.random.default_rng(trial_seed(seed, trial, object_name, surface))
     start = np.array([rng.normal(0, 0.005), rng.normal(0, 0.005),

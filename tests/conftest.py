@@ -2,8 +2,8 @@
 
 import pytest
 
-from models.kinematics import PlanarHandIK
-from models.scene import SceneSpec
+from models.herb.kinematics import PlanarHandIK
+from models.herb.scene import SceneSpec
 
 
 @pytest.fixture(scope="session")
@@ -30,7 +30,7 @@ def box_manifold(box_world):
     thesis' 1.15 deg to keep the suite quick)."""
     import numpy as np
 
-    from estimation.manifolds import AnalyticManifold
+    from estimation.hand.manifolds import AnalyticManifold
 
     return AnalyticManifold(box_world, dtheta_rad=np.deg2rad(3.0))
 
@@ -42,8 +42,8 @@ def small_hand_model():
     import numpy as np
 
     from models.planar.world import PlanarWorld
-    from planning.hand_discretization import HandProblemSpec
-    from planning.hand_pomdp import build_hand_pomdp
+    from planning.hand.discretization import HandProblemSpec
+    from planning.hand.model import build_hand_pomdp
 
     world = PlanarWorld.load("small_box", "fingertips")
     spec = HandProblemSpec(trust_x_m=(0.0, 0.22), trust_y_m=(-0.08, 0.08),
@@ -55,8 +55,8 @@ def small_hand_model():
 def small_hand_solution(tmp_path_factory):
     """A small solved hand problem (as ``small_hand_model``, 2 samples per state; the
     point-based solver stopped after a few trials), cached in a temporary directory."""
-    from planning.hand_discretization import HandProblemSpec
-    from planning.hand_solution import HandSolveSettings, solve_hand_problem
+    from planning.hand.discretization import HandProblemSpec
+    from planning.hand.solution import HandSolveSettings, solve_hand_problem
 
     spec = HandProblemSpec(trust_x_m=(0.0, 0.22), trust_y_m=(-0.08, 0.08),
                            samples_per_state=2)
@@ -73,7 +73,7 @@ def _synthetic_push_log(seed: int = 0, c_m: float = 0.03):
     1 deg bias, 3 mm and 1.5 deg noise, hidden during 2-2.5 s. Rows at 100 Hz."""
     import numpy as np
 
-    from models.push_log import PushLog
+    from models.pusher.log import PushLog
 
     rng = np.random.default_rng(seed)
     dt, radius, half = 0.01, 0.003125, 0.045

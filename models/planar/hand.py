@@ -1,10 +1,10 @@
 """The planar BarrettHand: the 3-D Drake hand projected onto the push plane, with binary
 contact sensors on its front.
 
-One source of truth: the hand is built in a ``MultibodyPlant`` by :mod:`models.hand` from
+One source of truth: the hand is built in a ``MultibodyPlant`` by :mod:`models.herb.hand` from
 ``barrett_hand.yaml``, posed in its push preshape, and every collision geometry (boxes and
 cylinders) is projected along the palm's x axis (vertical when pushing, see
-:func:`models.herb.X_W_palm`) onto the plane of the palm's (z, y) axes, which become the
+:func:`models.herb.mount.X_W_palm`) onto the plane of the palm's (z, y) axes, which become the
 planar hand frame's (x, y). Each projection is a convex polygon, so the planar hand is a
 union of convex polygons.
 
@@ -36,9 +36,9 @@ from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
 from scipy.spatial import ConvexHull
 
 from models.config import Fields, resolve_asset
-from models.hand import BarrettHandSpec, add_barrett_hand
+from models.herb.hand import BarrettHandSpec, add_barrett_hand
+from models.herb.tactile import TactileLayout
 from models.planar.polygon import ConvexPolygons
-from models.tactile import TactileLayout
 
 CYLINDER_PROJECTION_SEGMENTS = 48
 LAYOUT_KINDS = ("front", "links")

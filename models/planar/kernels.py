@@ -23,8 +23,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from models.planar.polygon import CONTACT_POINT_TOLERANCE_M as _POINT_TOL
-from models.planar.pushing import OVERLAP_TOLERANCE_M as _OVERLAP_TOL
+from models.planar.tolerances import CONTACT_POINT_TOLERANCE_M as _POINT_TOL
+from models.planar.tolerances import OVERLAP_TOLERANCE_M as _OVERLAP_TOL
 
 
 @njit(cache=True, inline="always", fastmath=True)

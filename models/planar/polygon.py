@@ -22,8 +22,7 @@ from functools import cached_property
 
 import numpy as np
 
-CONTACT_POINT_TOLERANCE_M = 5e-4
-"""Vertices within this depth (m) of the deepest one share the contact (face contacts)."""
+from models.planar.tolerances import CONTACT_POINT_TOLERANCE_M
 
 
 @dataclass(frozen=True)

@@ -36,10 +36,8 @@ import numpy as np
 from scipy.special import ndtr, ndtri
 
 from models.planar.polygon import ConvexPolygons, deepest_penetration
-from models.planar.se2 import compose, exp_twist, inverse
-
-OVERLAP_TOLERANCE_M = 1e-6
-"""Overlaps shallower than this (m) are left alone (far below every other length here)."""
+from models.planar.tolerances import OVERLAP_TOLERANCE_M
+from models.se2 import compose, exp_twist, inverse
 
 
 @dataclass(frozen=True)

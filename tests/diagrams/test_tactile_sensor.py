@@ -6,7 +6,7 @@ from pydrake.geometry import GeometryId
 from pydrake.multibody.plant import ContactResults
 
 from diagrams.tactile_sensor import TactileSensor
-from models.tactile import SensorGroups, TactileLayout, TactileNoise
+from models.herb.tactile import SensorGroups, TactileLayout, TactileNoise
 
 LAYOUT = TactileLayout.load("fingertips")
 

@@ -6,12 +6,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from diagrams.cli import main
+from cmanip.cli import main
 from experiments.handplan_study import HandplanSettings, run_study
 from models.planar.hand import PlanarHand
-from planning.cassandra import read_pomdp
-from planning.hand_discretization import HandProblemSpec
-from planning.precontact import PreContactSettings
+from planning.hand.discretization import HandProblemSpec
+from planning.hand.precontact import PreContactSettings
+from planning.pomdp.cassandra import read_pomdp
 
 TINY = HandplanSettings(
     trials=4, seed=1, solve_seconds=2.0, horizon=4, belief_count=3, belief_particles=100,

@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 
-from diagrams.cli import main
+from cmanip.cli import main
 from experiments.mpf_study import FilterSpec, TrialSettings, run_part, run_trial
 
 TINY = TrialSettings(push_distance_m=0.2, update_interval_m=0.01, particles=30,

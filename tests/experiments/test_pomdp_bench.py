@@ -1,7 +1,7 @@
 """``cmanip bench pomdp``'s hand-problem section reports its keys (times are not asserted)."""
 
 from experiments.pomdp_bench import hand_problem_bench
-from planning.hand_discretization import HandProblemSpec
+from planning.hand.discretization import HandProblemSpec
 
 
 def test_hand_problem_bench_reports_every_key(capsys):

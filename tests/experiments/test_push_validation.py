@@ -22,7 +22,7 @@ def test_rotation_direction_agrees_with_drake_in_every_case(tmp_path):
 
 
 def test_pushval_refuses_a_push_longer_than_the_table_allows(tmp_path, capsys):
-    from diagrams.cli import main
+    from cmanip.cli import main
 
     assert main(["experiment", "pushval", "--push-distance", "1.0", "--out", str(tmp_path)]) == 2
     assert "--push-distance" in capsys.readouterr().err

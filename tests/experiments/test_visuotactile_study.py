@@ -4,9 +4,9 @@ import json
 
 import numpy as np
 
-from diagrams.cli import main
-from estimation.pushing_inputs import PushingSteps
-from estimation.pushing_noise import identify_from_runs
+from cmanip.cli import main
+from estimation.pushing.inputs import PushingSteps
+from estimation.pushing.noise import identify_from_runs
 from experiments import visuotactile_plots as plots
 from experiments.visuotactile_study import PAPER_TABLE_II, Method, compare, paper_methods
 from models.objects import ObjectSpec
@@ -40,7 +40,7 @@ def test_a_failed_estimate_is_reported_not_raised(synthetic_push_log):
     """Without the stationary prior and with no contact or camera, GTSAM's system is
     under-determined: the study records the failure and goes on."""
     noise = _noise([synthetic_push_log])
-    from estimation.visuotactile_smoother import SmootherSettings
+    from estimation.pushing.smoother import SmootherSettings
 
     method = Method("motion only, no prior", "isam", SmootherSettings(costs=("motion",)))
     results, _ = compare((method,), [synthetic_push_log], RECT1, noise, start_at_truth=True,

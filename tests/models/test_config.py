@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from models.config import ConfigError
+from models.herb.scene import SceneSpec
+from models.herb.tactile import TactileLayout
 from models.objects import ObjectSpec
-from models.scene import SceneSpec
-from models.tactile import TactileLayout
 
 GOOD_SCENE = textwrap.dedent("""\
     arm: right

@@ -12,11 +12,11 @@ from pydrake.systems.framework import DiagramBuilder
 
 from models.bodies import add_geometry
 from models.contact import OBJECT_MATERIAL
-from models.hand import BarrettHandSpec, add_barrett_hand
+from models.herb.hand import BarrettHandSpec, add_barrett_hand
+from models.herb.tactile import TactileLayout
 from models.objects import ObjectSpec
 from models.planar.polygon import ConvexPolygons, signed_distances
 from models.planar.world import PlanarWorld
-from models.tactile import TactileLayout
 
 # Planar hand frame H -> palm frame P: H's x is the palm's z, H's y the palm's y, H's z
 # (up) the palm's -x. An object's body z is H's z.

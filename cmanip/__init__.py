@@ -1,0 +1,2 @@
+"""The application: the ``cmanip`` command line and run configuration. Imports every layer;
+nothing imports it."""

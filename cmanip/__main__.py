@@ -1,0 +1,7 @@
+"""``python -m cmanip``: the same as the ``cmanip`` command."""
+
+import sys
+
+from cmanip.cli import main
+
+sys.exit(main())

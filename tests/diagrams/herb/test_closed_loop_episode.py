@@ -1,0 +1,107 @@
+"""A short closed-loop episode in the whole HERB diagram, its outputs and the CLI."""
+
+import json
+
+import numpy as np
+import pytest
+from pydrake.geometry import Meshcat
+
+from diagrams.belief_drawing import BeliefDrawer
+from diagrams.herb.closed_loop import EpisodeSettings, make_filter, run_episode
+from diagrams.herb.report import write_episode
+from estimation.particles.belief import ParticleBelief
+from planning.hand.precontact import PreContactSettings
+
+
+@pytest.fixture(scope="module")
+def meshcat():
+    return Meshcat()
+
+
+@pytest.fixture(scope="module")
+def episode(small_hand_solution, meshcat):
+    solution, _, _ = small_hand_solution
+    settings = EpisodeSettings(object_name="small_box", policy="pomdp", estimator="cpf",
+                               particles=60, horizon=3,
+                               belief_mean=(0.30, 0.0, 0.0),
+                               precontact=PreContactSettings(time_limit_s=2.0), seed=4)
+    return run_episode(settings, solution, meshcat=meshcat, progress=False,
+                       filter_factory=make_filter("cpf", solution.model.world))
+
+
+def test_episode_moves_the_hand_by_the_decided_actions(episode, small_hand_solution):
+    solution, _, _ = small_hand_solution
+    s = episode.summary
+    assert s["stop_reason"] in ("horizon", "no_feasible_action")
+    assert 1 <= s["steps"] <= 3 and s["infeasible_actions"] == 0
+    vectors = solution.model.spec.action_vectors()
+    index = {name: i for i, name in enumerate(solution.model.pomdp.actions)}
+    commanded = sum(vectors[index[a]] for a in s["actions"])
+    palm = episode.trace["palm"]
+    moved = palm[-1] - palm[0]  # the hand faces world +x at the start
+    np.testing.assert_allclose(moved[:2], commanded[:2], atol=2e-3)
+    assert len(s["planning_ms"]) >= s["steps"] and s["planning_ms_median"] > 0
+
+
+def test_the_object_starts_where_the_episode_drew_it(episode):
+    s = episode.summary
+    rel = np.array(s["initial_object_pose_hand"])
+    # drawn from N((0.30, 0, 0), (5 cm, 5 cm, 15 deg)) and measured back from the plant
+    assert abs(rel[0] - 0.30) < 0.25 and abs(rel[1]) < 0.25
+    assert episode.trace["rmse_m"][0] > 0
+    assert s["success"] == bool(episode.trace["in_goal"][-1])
+
+
+def test_outputs_are_written_and_the_replay_shows_the_belief(episode, meshcat, tmp_path):
+    write_episode(episode, tmp_path)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert {"success", "steps", "time_to_goal_s", "final_distance_to_goal_m",
+            "estimator_rmse_over_time", "planning_ms"} <= set(summary)
+    assert (tmp_path / "belief.png").stat().st_size > 10_000
+    data = np.load(tmp_path / "trace.npz")
+    decisions = len(summary["planning_ms"])
+    assert data["decision_particles"].shape == (decisions, 60, 3)
+    assert data["decision_true_rel"].shape == (decisions, 3)
+    assert len(data["trace_time_s"]) == len(data["trace_rmse_m"]) > decisions
+    html = (tmp_path / "replay.html").read_text()
+    assert "<html" in html.lower() and "animation" in html.lower()
+    for path in ("/belief/particles/0", "/belief/mean", "/belief/goal", "/belief/sensors/1/on"):
+        assert meshcat.HasPath(path)
+
+
+def test_settings_reject_bad_values():
+    with pytest.raises(ValueError, match="policy"):
+        EpisodeSettings(policy="greedy")
+    with pytest.raises(ValueError, match="estimator"):
+        EpisodeSettings(estimator="ukf")
+
+
+def test_drawer_draws_particles_mean_goal_and_sensors(meshcat):
+    belief = ParticleBelief.uniform(np.array([[0.2, 0.0, 0.0], [0.25, 0.01, 0.1]]))
+    drawer = BeliefDrawer(meshcat, np.array([[-0.01, -0.01], [0.01, -0.01], [0.01, 0.01]]),
+                          np.array([[0.1, -0.04], [0.14, 0.04]]),
+                          np.array([[0.1, -0.03], [0.1, 0.03]]), belief, height_m=0.74,
+                          particles=2)
+    context = drawer.CreateDefaultContext()
+    drawer.GetInputPort("belief").FixValue(context, belief)
+    drawer.GetInputPort("palm_pose").FixValue(context, np.zeros(3))
+    drawer.GetInputPort("sensor_contact").FixValue(context, np.array([1.0, 0.0]))
+    drawer.ForcedPublish(context)
+    for path in ("/belief/particles/1", "/belief/mean", "/belief/goal",
+                 "/belief/sensors/0/on", "/belief/sensors/1/off"):
+        assert meshcat.HasPath(path)
+
+
+def test_an_episode_refuses_an_object_the_model_was_not_built_for(small_hand_solution):
+    solution, _, _ = small_hand_solution
+    with pytest.raises(ValueError, match="planning model is for 'small_box'"):
+        run_episode(EpisodeSettings(object_name="bottle"), solution, progress=False)
+
+
+def test_run_command_rejects_bad_settings_before_any_work(tmp_path, capsys):
+    from cmanip.cli import main
+
+    assert main(["run", "--particles", "2", "--out", str(tmp_path)]) == 2
+    assert "particles must be >= 10" in capsys.readouterr().err
+    assert main(["experiment", "closedloop", "--trials", "0", "--out", str(tmp_path)]) == 2
+    assert "--trials must be >= 1" in capsys.readouterr().err

@@ -1,0 +1,76 @@
+"""CPF, MPF and the contact-manifold representations on the planar box world."""
+
+import numpy as np
+import pytest
+
+from estimation.hand.manifolds import RejectionSampledManifold, TrajectoryRolloutManifold
+from estimation.particles.belief import ParticleBelief
+from estimation.particles.filters import ConventionalParticleFilter, ManifoldParticleFilter
+from models.planar.observation import observation_key
+
+ACTION = np.array([0.005, 0.0, 0.0])
+FINGERTIPS = np.array([[0.1416, 0.0, 0.0]])  # box against both fingertips
+
+
+def test_analytic_samples_lie_on_the_manifold_and_explain_the_reading(box_world,
+                                                                      box_manifold):
+    rng = np.random.default_rng(0)
+    reading = box_world.sensing.true_contacts(FINGERTIPS)[0]
+    samples = box_manifold.sample(reading, 200, rng=rng)
+    d = box_world.sensing.hand_distance(samples)
+    assert np.all(np.abs(d) < 1e-3)
+    # q(s) ~ p(o | s) on the manifold: the matching pieces carry 0.9 x their length, every
+    # other piece 0.1 / 63 x its length, so some samples are (rightly) off the reading
+    match = box_manifold.keys == observation_key(reading)
+    share = 0.9 * box_manifold.length[match].sum() / (
+        0.9 * box_manifold.length[match].sum() + 0.1 / 63 * box_manifold.length[~match].sum())
+    explained = np.mean(box_world.log_likelihood(reading, samples) > np.log(0.5))
+    assert abs(explained - share) < 0.1
+
+
+def test_rejection_and_rollout_sets_are_near_the_hand(box_world):
+    rng = np.random.default_rng(1)
+    rs = RejectionSampledManifold(box_world, size=300, rng=rng)
+    assert len(rs) == 300
+    assert np.all(np.abs(box_world.sensing.hand_distance(rs.states)) <= 1e-3 + 1e-9)
+    starts = box_world.sample_gaussian([0.2, 0.0, 0.0], [0.03, 0.03, 0.3], 60, rng=rng)
+    tr = TrajectoryRolloutManifold(box_world, starts, np.array([0.01, 0, 0]), 15,
+                                   per_rollout=5, rng=rng)
+    assert 0 < len(tr) <= 300
+    assert box_world.sensing.true_contacts(tr.states).any(axis=1).all()
+
+
+def _run(filter_, world, true_start, steps, seed):
+    rng = np.random.default_rng(seed)
+    belief = ParticleBelief.uniform(
+        world.sample_gaussian(true_start + [0.0, 0.01, 0.1], [0.02, 0.02, 0.2], 100, rng=rng))
+    truth = np.array([true_start])
+    diagnostics = []
+    for _ in range(steps):
+        truth = world.sample_step(truth, ACTION, rng=rng)
+        reading = world.sample_observation(truth, rng.random((1, 2)))[0]
+        belief, diag = filter_.update(belief, ACTION, reading, rng=rng)
+        diagnostics.append(diag)
+    return belief.rmse(truth[0]), diagnostics
+
+
+def test_mpf_draws_dual_particles_during_contact_and_keeps_track(box_world, box_manifold):
+    """The MPF-vs-CPF comparison is the study's (``cmanip experiment mpf``); here: the MPF
+    uses its dual particles once contact is read and stays within a few cm."""
+    start = np.array([0.16, 0.02, 0.05])
+    for seed in range(3):
+        (pos, _), diags = _run(ManifoldParticleFilter(box_world, box_manifold), box_world,
+                               start, 20, seed)
+        assert any(d.dual_used for d in diags)
+        assert all(d.dual_used or d.sampling_failed for d in diags if d.contact_observed)
+        assert pos < 0.05
+
+
+def test_mixing_rate_zero_is_the_cpf_and_bad_parameters_are_refused(box_world, box_manifold):
+    mpf = ManifoldParticleFilter(box_world, box_manifold, mixing_rate=0.0)
+    cpf = ConventionalParticleFilter(box_world)
+    a = _run(mpf, box_world, np.array([0.16, 0.0, 0.0]), 8, 3)[0]
+    b = _run(cpf, box_world, np.array([0.16, 0.0, 0.0]), 8, 3)[0]
+    assert a[0] == pytest.approx(b[0], abs=0.03)
+    with pytest.raises(ValueError, match="mixing_rate"):
+        ManifoldParticleFilter(box_world, box_manifold, mixing_rate=1.5)
