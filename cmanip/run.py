@@ -83,13 +83,9 @@ def _solution(args, object_name: str):
 def _run(args) -> int:
     from pydrake.geometry import Meshcat
 
-    from diagrams.herb.closed_loop import (
-        THESIS_BELIEF_MEANS,
-        EpisodeSettings,
-        InfeasibleStart,
-        run_episode,
-    )
+    from diagrams.herb.episode import InfeasibleStart, run_episode
     from diagrams.herb.report import write_episode
+    from diagrams.herb.settings import THESIS_BELIEF_MEANS, EpisodeSettings
     from planning.hand.precontact import PreContactSettings
 
     settings = EpisodeSettings(

@@ -19,9 +19,18 @@ from models.se2 import compose
 
 PARTICLE_RGBA = Rgba(0.85, 0.35, 0.1, 0.35)
 MEAN_RGBA = Rgba(0.9, 0.1, 0.1, 1.0)
-GOAL_RGBA = Rgba(0.1, 0.7, 0.2, 1.0)
+GOAL_PALETTE = ((0.1, 0.7, 0.2), (0.8, 0.15, 0.75), (0.1, 0.6, 0.9), (0.15, 0.15, 0.15))
+"""Goal-region colours (green, magenta, sky blue, near-black); the drawer takes the one
+farthest from the object's colour, so the goal never looks like the object."""
 SENSOR_OFF_RGBA = Rgba(0.6, 0.6, 0.6, 0.5)
 SENSOR_ON_RGBA = Rgba(1.0, 0.9, 0.0, 1.0)
+
+
+def goal_rgba(object_rgba) -> Rgba:
+    """The :data:`GOAL_PALETTE` colour farthest (in RGB) from ``object_rgba``."""
+    rgb = np.asarray(object_rgba, dtype=float)[:3]
+    far = max(GOAL_PALETTE, key=lambda c: float(np.sum((np.asarray(c) - rgb) ** 2)))
+    return Rgba(*far, 1.0)
 
 
 def _loop(points_2d: np.ndarray, z: float) -> np.ndarray:
@@ -37,6 +46,7 @@ class BeliefDrawer(LeafSystem):
     Args:
         meshcat: where to draw.
         outline: (V, 2) the object's outline about its centre (m).
+        object_rgba: the object's colour (the goal is drawn in a contrasting one).
         goal: (2, 2) [[x_lo, y_lo], [x_hi, y_hi]] the goal region in the hand frame (m).
         sensor_points: (S, 2) where to mark each sensor, hand frame (m).
         height_m: drawing height (m): just above the object's top, so that the belief is
@@ -47,6 +57,7 @@ class BeliefDrawer(LeafSystem):
 
     def __init__(self, meshcat: Meshcat, outline: np.ndarray, goal: np.ndarray,
                  sensor_points: np.ndarray, initial: ParticleBelief, *, height_m: float,
+                 object_rgba: tuple[float, float, float, float],
                  particles: int = 60, period_s: float = 0.1):
         super().__init__()
         self._meshcat = meshcat
@@ -57,8 +68,8 @@ class BeliefDrawer(LeafSystem):
             meshcat.SetLine(path, _loop(outline, 0.0), 1.0, PARTICLE_RGBA)
         meshcat.SetLine("/belief/mean", _loop(outline, 0.0), 4.0, MEAN_RGBA)
         (x0, y0), (x1, y1) = goal
-        meshcat.SetLine("/belief/goal", _loop(np.array([[x0, y0], [x1, y0], [x1, y1],
-                                                        [x0, y1]]), 0.0), 3.0, GOAL_RGBA)
+        corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+        meshcat.SetLine("/belief/goal", _loop(corners, 0.0), 3.0, goal_rgba(object_rgba))
         self._sensor_points = np.asarray(sensor_points, dtype=float)
         for i in range(len(self._sensor_points)):
             for on, rgba in ((False, SENSOR_OFF_RGBA), (True, SENSOR_ON_RGBA)):

@@ -20,7 +20,9 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from diagrams.herb.closed_loop import THESIS_BELIEF_MEANS, EpisodeSettings, make_filter, run_episode
+from diagrams.herb.closed_loop import estimator_filter
+from diagrams.herb.episode import run_episode
+from diagrams.herb.settings import THESIS_BELIEF_MEANS, EpisodeSettings
 from experiments.statistics import wilson_interval
 from planning.hand.precontact import PreContactSettings
 from planning.hand.solution import HandSolution
@@ -37,7 +39,7 @@ class ClosedLoopSettings:
         trials: episodes per policy.
         seed: master seed.
         estimator, planner_belief, horizon, particles, on_infeasible: as
-            :class:`~diagrams.herb.closed_loop.EpisodeSettings`.
+            :class:`~diagrams.herb.settings.EpisodeSettings`.
         plan_seconds: the pre-contact search's time limit (s).
         beliefs: the initial belief means (hand frame).
     """
@@ -69,14 +71,14 @@ def run_closedloop_study(settings: ClosedLoopSettings, solution: HandSolution, o
                          progress: bool = True) -> dict:
     """Run every (policy, trial) episode; write and return the summary."""
     out.mkdir(parents=True, exist_ok=True)
-    factory = make_filter(settings.estimator, solution.model.world)
+    shared = estimator_filter(settings.estimator, solution.model.world)
     results: dict[str, dict] = {}
     for policy in settings.policies:
         trials = []
         for j in tqdm(range(settings.trials), desc=f"closed loop ({policy})", unit="episode",
                       disable=not progress):
             episode = run_episode(settings.episode(policy, j), solution, progress=False,
-                                  filter_factory=factory)
+                                  filter=shared)
             summary = episode.summary
             summary["trial"] = j
             summary["belief"] = j % len(settings.beliefs) + 1

@@ -30,7 +30,7 @@ from estimation.hand.manifolds import (
     TrajectoryRolloutManifold,
 )
 from estimation.particles.belief import ParticleBelief
-from estimation.particles.filters import ConventionalParticleFilter, ManifoldParticleFilter
+from estimation.particles.factory import make_filter
 from experiments.mpf_plots import plot_part, plot_world
 from models.planar.world import PlanarWorld
 
@@ -171,7 +171,7 @@ def run_trial(settings: TrialSettings, filters: tuple[FilterSpec, ...], study_se
 
 def _make_filter(world, settings, spec, mean, std, action, study_seed, rng):
     if spec.kind == "cpf":
-        return ConventionalParticleFilter(world)
+        return make_filter("cpf", world)
     if spec.kind == "am":
         manifold = _analytic(settings.object, settings.sensors, settings.am_dtheta_deg)
     elif spec.kind == "rs":
@@ -184,8 +184,8 @@ def _make_filter(world, settings, spec, mean, std, action, study_seed, rng):
     else:
         raise ValueError(f"unknown filter kind {spec.kind!r}")
     phi = settings.mixing_rate if spec.mixing_rate is None else spec.mixing_rate
-    return ManifoldParticleFilter(world, manifold, dual_particles=settings.dual_particles,
-                                  mixing_rate=phi)
+    return make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
+                       mixing_rate=phi)
 
 
 def _trial_job(job):

@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from diagrams.herb.closed_loop import Episode  # noqa: E402
+from diagrams.herb.episode import Episode  # noqa: E402
 from models.se2 import compose  # noqa: E402
 
 
@@ -19,7 +19,7 @@ def write_episode(episode: Episode, out_dir: Path) -> None:
     """Write the episode's files into ``out_dir`` (created if needed): ``summary.json``,
     ``belief.png``, ``replay.html`` (when recorded), and ``trace.npz`` with the trace and
     the belief at every decision (keys ``trace_<name>`` and ``decision_<name>``, see
-    :class:`~diagrams.herb.closed_loop.Episode`)."""
+    :class:`~diagrams.herb.episode.Episode`)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(out_dir / "trace.npz",
                         **{f"trace_{k}": v for k, v in episode.trace.items()},

@@ -10,6 +10,9 @@ been seen, which is what a pre-/post-contact controller switches on (thesis sec.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Protocol
+
 import numpy as np
 
 from estimation.particles.belief import ParticleBelief
@@ -17,37 +20,51 @@ from estimation.particles.filters import UpdateDiagnostics
 from models.se2 import compose, inverse
 
 
-class HandRelativeTracker:
-    """A particle belief over the object's hand-frame pose, updated from measured motion.
+class ParticleFilter(Protocol):
+    """The CPF or the MPF of :mod:`estimation.particles.filters`."""
 
-    Args:
-        filter: anything with ``update(belief, action, observation, *, rng) ->
-            (belief, diagnostics)`` (the CPF or the MPF).
-        belief: the initial belief (poses (N, 3) in the hand frame: m, m, rad).
-        hand_pose_W: (3,) the palm's planar world pose when ``belief`` holds.
+    def update(self, belief: ParticleBelief, action: np.ndarray, observation: np.ndarray, *,
+               rng: np.random.Generator) -> tuple[ParticleBelief, UpdateDiagnostics]: ...
+
+
+@dataclass(frozen=True)
+class HandRelativeTracker:
+    """A particle belief over the object's hand-frame pose, updated from measured motion;
+    an immutable value (a system keeps it as Context state), the filter passed in.
+
+    Attributes:
+        belief: poses (N, 3) in the hand frame (m, m, rad).
+        hand_pose_W: (3,) read-only, the palm's planar world pose when ``belief`` holds.
+        contact_seen: has any reading so far reported contact?
+        updates: how many updates made this value.
+        last_diagnostics: what the last update's filter reported (``None`` before one).
     """
 
-    def __init__(self, filter, belief: ParticleBelief, hand_pose_W: np.ndarray):
-        self.filter = filter
-        self.belief = belief
-        self.hand_pose_W = np.asarray(hand_pose_W, dtype=float).copy()
-        self.contact_seen = False
-        self.updates = 0
-        self.last_diagnostics: UpdateDiagnostics | None = None
+    belief: ParticleBelief
+    hand_pose_W: np.ndarray
+    contact_seen: bool = False
+    updates: int = 0
+    last_diagnostics: UpdateDiagnostics | None = None
 
-    def update(self, hand_pose_W: np.ndarray, reading: np.ndarray, *,
-               rng: np.random.Generator) -> UpdateDiagnostics:
-        """Move the belief by the palm's motion since the last update and weigh it by the
-        (S,) boolean ``reading`` taken at ``hand_pose_W``."""
+    def __post_init__(self):
+        pose = np.array(self.hand_pose_W, dtype=float)
+        pose.setflags(write=False)
+        object.__setattr__(self, "hand_pose_W", pose)
+
+    def __deepcopy__(self, memo) -> HandRelativeTracker:
+        return self  # immutable: a copy would be the same value
+
+    def update(self, filter: ParticleFilter, hand_pose_W: np.ndarray, reading: np.ndarray, *,
+               rng: np.random.Generator) -> HandRelativeTracker:
+        """The tracker after the palm moved to ``hand_pose_W`` and took the (S,) boolean
+        ``reading`` there: the belief moved by the palm's motion since this value's pose
+        and weighed by the reading, through ``filter`` (the CPF or the MPF)."""
         hand_pose_W = np.asarray(hand_pose_W, dtype=float)
         action = compose(inverse(self.hand_pose_W), hand_pose_W)
         reading = np.asarray(reading, dtype=bool)
-        self.belief, diagnostics = self.filter.update(self.belief, action, reading, rng=rng)
-        self.hand_pose_W = hand_pose_W.copy()
-        self.contact_seen |= bool(reading.any())
-        self.updates += 1
-        self.last_diagnostics = diagnostics
-        return diagnostics
+        belief, diagnostics = filter.update(self.belief, action, reading, rng=rng)
+        return HandRelativeTracker(belief, hand_pose_W, self.contact_seen or bool(reading.any()),
+                                   self.updates + 1, diagnostics)
 
     def world_poses(self) -> np.ndarray:
         """(N, 3) the particles as world poses (m, m, rad)."""

@@ -1,7 +1,8 @@
 """The conventional and manifold particle filters (thesis Alg. 4.1 and 4.2).
 
-Both are ``update(belief, action, observation, *, rng) -> (belief, diagnostics)`` over the
-planar world's batched transition and observation models.
+Both are ``update(belief, action, observation, *, rng) -> (belief, diagnostics)`` over any
+batched transition and contact-observation model (:class:`models.protocols.FilterModel`:
+the planar hand-relative world, or a robot-configuration model).
 """
 
 from __future__ import annotations
@@ -14,15 +15,19 @@ import numpy as np
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.kde import log_density
 from estimation.particles.logmath import log_sum_exp
-from models.planar.world import PlanarWorld
+from models.protocols import FilterModel
 
 SAMPLING_FAILURE_LIKELIHOOD = 0.1
 """A dual draw fails when every sample has p(o | s) below this (thesis sec. 4.3.5)."""
 
 
 class ContactManifold(Protocol):
+    """The observable contact manifold of an observation (analytic, rejection-sampled,
+    rollout, implicit): the MPF's dual proposal."""
+
     def sample(self, observation: np.ndarray, n: int, *,
-               rng: np.random.Generator) -> np.ndarray: ...
+               rng: np.random.Generator) -> np.ndarray:
+        """(n, d) states on the contact manifold of ``observation``."""
 
 
 @dataclass(frozen=True)
@@ -53,11 +58,11 @@ class ConventionalParticleFilter:
     likelihood, resample (low variance) every update.
 
     Args:
-        world: the planar world (transition and observation models).
+        world: the transition and observation models (e.g. the planar world).
         resample_size: particles after resampling (default: keep the count).
     """
 
-    def __init__(self, world: PlanarWorld, resample_size: int | None = None):
+    def __init__(self, world: FilterModel, resample_size: int | None = None):
         self.world = world
         self.resample_size = resample_size
 
@@ -68,7 +73,7 @@ class ConventionalParticleFilter:
         degenerate = _normalised(log_w) is None
         if degenerate:
             log_w = np.array(belief.log_weights)
-        posterior = ParticleBelief(predicted, log_w)
+        posterior = ParticleBelief(predicted, log_w, belief.angular)
         n = self.resample_size or len(belief)
         return (posterior.resample(n, rng=rng),
                 UpdateDiagnostics(bool(np.any(observation)), degenerate=degenerate))
@@ -87,13 +92,13 @@ class ManifoldParticleFilter:
     and the update is the CPF's. The posterior is resampled to ``nc`` particles.
 
     Args:
-        world: the planar world.
+        world: the transition and observation models (e.g. the planar world).
         manifold: a contact-manifold representation (``sample(observation, n, *, rng)``).
         dual_particles: nd.
         mixing_rate: phi in [0, 1] (0 = CPF, 1 = pure MPF).
     """
 
-    def __init__(self, world: PlanarWorld, manifold: ContactManifold, *,
+    def __init__(self, world: FilterModel, manifold: ContactManifold, *,
                  dual_particles: int = 25, mixing_rate: float = 0.1):
         if not 0.0 <= mixing_rate <= 1.0:
             raise ValueError(f"mixing_rate must be in [0, 1], got {mixing_rate}")
@@ -138,6 +143,7 @@ class ManifoldParticleFilter:
             parts_log_w.insert(0, cpf + np.log(share) if share > 0 else cpf - np.inf)
         elif not parts_states:  # nothing explains the observation: keep the prediction
             parts_states, parts_log_w = [predicted], [np.log(prior_w)]
-        posterior = ParticleBelief(np.concatenate(parts_states), np.concatenate(parts_log_w))
+        posterior = ParticleBelief(np.concatenate(parts_states), np.concatenate(parts_log_w),
+                                   belief.angular)
         diagnostics = UpdateDiagnostics(contact, dual_used, failed, degenerate)
         return posterior.resample(len(belief), rng=rng), diagnostics

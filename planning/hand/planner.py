@@ -21,23 +21,50 @@ back to the next: by the post-contact vectors' value at the current belief.
 :class:`~planning.hand.policy.HandPolicy` on its own beliefs, started from the first
 belief it is given and updated with the action executed and the reading at each decision,
 so the post-contact belief update is the planning model's own (sec. 6.4.1).
+
+Both answer the :class:`~planning.protocols.Planner` protocol and are immutable: what they
+remember between decisions is the :attr:`~planning.protocols.PlanResult.memory` of their
+last answer.
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
 from estimation.particles.belief import ParticleBelief
 from planning.hand.model import HandPOMDP
-from planning.hand.policy import HandPolicy
+from planning.hand.policy import HandPolicy, HandPolicyState
 from planning.hand.precontact import PreContactPlan, PreContactPlanner, PreContactSettings
 from planning.pomdp.point_based import AlphaVectorPolicy
+from planning.protocols import PlanResult
+
+
+@dataclass(frozen=True)
+class HandPlannerMemory:
+    """What :class:`HandPlanner` remembers between decisions.
+
+    Attributes:
+        phase: ``pre-contact`` or ``post-contact``.
+        trajectory: the pre-contact trajectory, once searched.
+        step: how many of its actions have been sent.
+    """
+
+    phase: str
+    trajectory: PreContactPlan | None = None
+    step: int = 0
+
+
+def _search_stats(plan: PreContactPlan) -> dict:
+    return {"search": {"actions": list(plan.actions), "expansions": plan.expansions,
+                       "seconds": plan.seconds, "reason": plan.reason}}
 
 
 class HandPlanner:
-    """``plan(belief, *, contact_seen, rng) -> (action, stats)``.
+    """``plan(belief, *, rng, contact_seen, memory) -> PlanResult``: an immutable core; its
+    phase and trajectory position travel in :class:`HandPlannerMemory`.
 
     Args:
         model: the hand-relative POMDP.
@@ -52,46 +79,48 @@ class HandPlanner:
         self.post_contact = post_contact
         self._search = (None if precontact is None
                         else PreContactPlanner(model, post_contact, precontact))
-        self.trajectory: PreContactPlan | None = None
-        self.phase = "pre-contact" if precontact is not None else "post-contact"
-        self._step = 0
 
-    def plan(self, belief: ParticleBelief, *, contact_seen: bool, rng: np.random.Generator,
-             last_action: int | None = None,
-             reading: np.ndarray | None = None) -> tuple[int, dict]:
-        """The next action for ``belief`` (object poses in the hand frame); ``last_action``
-        and ``reading`` are not needed here (the belief carries them).
+    def plan(self, belief: ParticleBelief, *, rng: np.random.Generator,
+             contact_seen: bool = False, memory: HandPlannerMemory | None = None,
+             **_: object) -> PlanResult:
+        """The next action for ``belief`` (object poses in the hand frame).
+
+        Args:
+            belief: the estimator's belief.
+            rng: draws of the pre-contact search (on the call that searches).
+            contact_seen: has the estimator seen contact (the switch to post-contact)?
+            memory: the previous result's memory (``None`` on the first decision).
+            **_: other context (``last_action``, ``reading``) is not needed: the belief
+                carries it.
 
         Returns:
-            ``(action index, stats)``; stats: ``phase``, ``ranking`` (every action, best
-            first), ``planning_ms`` (wall time of this call, including the search when it
-            ran), and, on the call that searched, ``search`` (its actions, expansions,
-            seconds and stop reason).
+            The decision; its ``stats`` hold ``search`` on the call that searched.
         """
         start = time.perf_counter()
+        if memory is None:
+            memory = HandPlannerMemory(
+                "pre-contact" if self._search is not None else "post-contact")
         stats: dict = {}
         values = self.post_contact.action_values(
             self.model.belief(np.asarray(belief.states), belief.weights))
         ranking = [int(a) for a in np.argsort(-values, kind="stable")]
-        if self.phase == "pre-contact" and contact_seen:
-            self.phase = "post-contact"
-        if self.phase == "pre-contact":
-            if self.trajectory is None:
-                self.trajectory = self._search.plan(np.asarray(belief.states), belief.weights,
-                                                    rng=rng)
-                stats["search"] = {"actions": list(self.trajectory.actions),
-                                   "expansions": self.trajectory.expansions,
-                                   "seconds": self.trajectory.seconds,
-                                   "reason": self.trajectory.reason}
-            if self._step < len(self.trajectory.actions):
-                first = self.trajectory.actions[self._step]
-                self._step += 1
+        phase, trajectory, step = memory.phase, memory.trajectory, memory.step
+        if phase == "pre-contact" and contact_seen:
+            phase = "post-contact"
+        if phase == "pre-contact":
+            if trajectory is None:
+                trajectory = self._search.plan(np.asarray(belief.states), belief.weights,
+                                               rng=rng)
+                stats = _search_stats(trajectory)
+            if step < len(trajectory.actions):
+                first = trajectory.actions[step]
+                step += 1
                 ranking = [first] + [a for a in ranking if a != first]
             else:
-                self.phase = "post-contact"
-        stats.update(phase=self.phase, ranking=ranking,
-                     planning_ms=1e3 * (time.perf_counter() - start))
-        return ranking[0], stats
+                phase = "post-contact"
+        return PlanResult(ranking[0], tuple(ranking), phase,
+                          1e3 * (time.perf_counter() - start), stats,
+                          HandPlannerMemory(phase, trajectory, step))
 
 
 class ThesisHandPlanner:
@@ -105,40 +134,35 @@ class ThesisHandPlanner:
                  precontact: PreContactSettings | None = PreContactSettings()):
         self.model = model
         self.post_contact = post_contact
-        search = None if precontact is None else PreContactPlanner(model, post_contact,
-                                                                   precontact)
-        self.policy = HandPolicy(model, post_contact, search)
-        self._started = False
+        self._search = None if precontact is None else PreContactPlanner(model, post_contact,
+                                                                         precontact)
 
-    def plan(self, belief: ParticleBelief, *, contact_seen: bool, rng: np.random.Generator,
-             last_action: int | None = None,
-             reading: np.ndarray | None = None) -> tuple[int, dict]:
-        """The next action. The first call starts the policy from ``belief``; every later
-        one first updates the policy's belief with ``last_action`` (the action executed
-        since, or ``None`` when none was) and ``reading`` ((S,) bool, taken after it);
-        ``belief`` and ``contact_seen`` are then not used.
+    def plan(self, belief: ParticleBelief, *, rng: np.random.Generator,
+             memory: HandPolicyState | None = None, last_action: int | None = None,
+             reading: np.ndarray | None = None, **_: object) -> PlanResult:
+        """The next action. The first call (``memory`` ``None``) starts the policy from
+        ``belief``; every later one first updates the policy's belief (restored from
+        ``memory``) with ``last_action`` (the action executed since, or ``None`` when none
+        was) and ``reading`` ((S,) bool, taken after it); ``belief`` is then not used.
 
         Returns:
-            ``(action index, stats)`` as :meth:`HandPlanner.plan`.
+            The decision, as :meth:`HandPlanner.plan`; its memory is the policy's state.
         """
         start = time.perf_counter()
         stats: dict = {}
-        if not self._started:
-            self.policy.reset(belief, rng=rng)
-            self._started = True
-            if self.policy.plan is not None:
-                stats["search"] = {"actions": list(self.policy.plan.actions),
-                                   "expansions": self.policy.plan.expansions,
-                                   "seconds": self.policy.plan.seconds,
-                                   "reason": self.policy.plan.reason}
-        elif last_action is not None:
-            self.policy.observe(last_action, np.asarray(reading, dtype=bool), rng=rng)
-        action = self.policy.act()
-        tracked = self.policy.discrete if self.policy.discrete is not None else \
-            self.model.belief(np.asarray(self.policy.particles.states),
-                              self.policy.particles.weights)
+        policy = HandPolicy(self.model, self.post_contact, self._search)
+        if memory is None:
+            policy.reset(belief, rng=rng)
+            if policy.plan is not None:
+                stats = _search_stats(policy.plan)
+        else:
+            policy.restore(memory)
+            if last_action is not None:
+                policy.observe(last_action, np.asarray(reading, dtype=bool), rng=rng)
+        action = policy.act()
+        tracked = policy.discrete if policy.discrete is not None else \
+            self.model.belief(np.asarray(policy.particles.states), policy.particles.weights)
         values = self.post_contact.action_values(tracked)
         ranking = [action] + [int(a) for a in np.argsort(-values, kind="stable") if a != action]
-        stats.update(phase=self.policy.phase, ranking=ranking,
-                     planning_ms=1e3 * (time.perf_counter() - start))
-        return action, stats
+        return PlanResult(action, tuple(ranking), policy.phase,
+                          1e3 * (time.perf_counter() - start), stats, policy.snapshot())

@@ -1,7 +1,8 @@
 """The combined hand-relative policy a controller calls step by step (thesis sec. 6.1).
 
-Before contact it follows the pre-contact trajectory from :mod:`planning.hand.precontact` and
-tracks the belief with a particle filter; "once we observed contact, we switched to using a
+Before contact it follows the pre-contact trajectory from :mod:`planning.hand.precontact`
+and tracks the belief with the conventional particle filter
+(:mod:`estimation.particles.filters`); "once we observed contact, we switched to using a
 discrete Bayes filter [...] This ensured that the belief update used during execution
 matched that used during planning" (sec. 6.4.1). It also switches when the trajectory runs
 out. The switch maps the particles to the discrete model (their predicted states) and
@@ -15,9 +16,12 @@ moment of contact.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from estimation.particles.belief import ParticleBelief
+from estimation.particles.factory import make_filter
 from planning.hand.model import HandPOMDP
 from planning.hand.precontact import PreContactPlan, PreContactPlanner
 from planning.pomdp.point_based import AlphaVectorPolicy
@@ -28,6 +32,27 @@ def qmdp_vectors(Q: np.ndarray, actions: tuple[str, ...]) -> AlphaVectorPolicy:
     """QMDP as a vector policy: one vector per action, ``Q[:, a]`` (thesis: "five
     alpha-vectors"), so QMDP and the point-based policy share one interface."""
     return AlphaVectorPolicy(np.ascontiguousarray(Q.T), np.arange(Q.shape[1]), actions)
+
+
+@dataclass(frozen=True)
+class HandPolicyState:
+    """A :class:`HandPolicy`'s belief and place, as an immutable value
+    (:meth:`HandPolicy.snapshot`, :meth:`HandPolicy.restore`).
+
+    Attributes:
+        plan: the pre-contact trajectory (``None`` without a pre-contact planner).
+        particles: the particle belief before contact, else ``None``.
+        discrete: (S,) read-only, the discrete belief after contact, else ``None``.
+        step: how many of the trajectory's actions have been observed.
+    """
+
+    plan: PreContactPlan | None
+    particles: ParticleBelief | None
+    discrete: np.ndarray | None
+    step: int
+
+    def __deepcopy__(self, memo) -> HandPolicyState:
+        return self  # immutable: a copy would be the same value
 
 
 class HandPolicy:
@@ -45,6 +70,7 @@ class HandPolicy:
         self.model = model
         self.post_contact = post_contact
         self.planner = planner
+        self._filter = make_filter("cpf", model.world)
         self.plan: PreContactPlan | None = None
         self.particles: ParticleBelief | None = None
         self.discrete: np.ndarray | None = None
@@ -77,6 +103,19 @@ class HandPolicy:
         if not self.plan.actions:
             self._switch()
 
+    def snapshot(self) -> HandPolicyState:
+        """The policy's state as a value; :meth:`restore` brings it back."""
+        discrete = None
+        if self.discrete is not None:
+            discrete = self.discrete.copy()
+            discrete.setflags(write=False)
+        return HandPolicyState(self.plan, self.particles, discrete, self._step)
+
+    def restore(self, state: HandPolicyState) -> None:
+        """Continue from a :meth:`snapshot`."""
+        self.plan, self.particles, self._step = state.plan, state.particles, state.step
+        self.discrete = None if state.discrete is None else state.discrete.copy()
+
     def act(self, belief: ParticleBelief | np.ndarray | None = None, *,
             rng: np.random.Generator | None = None) -> int:
         """The next action index; a ``belief`` given here replaces the tracked one (and
@@ -97,18 +136,16 @@ class HandPolicy:
         if self.discrete is not None:
             self.discrete, _ = belief_update(m.pomdp, self.discrete, action, o)
             return
-        world = m.world
         a_vec = m.spec.action_vectors()[action]
-        predicted = world.sample_step(self.particles.states, a_vec, rng=rng)
         self._step += 1
         if o != 0 or self._step >= len(self.plan.actions):
+            predicted = m.world.sample_step(self.particles.states, a_vec, rng=rng)
             prior = m.belief(predicted, self.particles.weights)
             joint = prior * m.pomdp.Z[action, :, o]
             self.discrete = joint / joint.sum() if joint.sum() > 0 else prior
             self.particles = None
             return
-        log_w = self.particles.log_weights + world.log_likelihood(observation, predicted)
-        self.particles = ParticleBelief(predicted, log_w).resample(rng=rng)
+        self.particles, _ = self._filter.update(self.particles, a_vec, observation, rng=rng)
 
     def _switch(self) -> None:
         self.discrete = self.model.belief(self.particles.states, self.particles.weights)

@@ -7,8 +7,10 @@ import pytest
 from pydrake.geometry import Meshcat
 
 from diagrams.belief_drawing import BeliefDrawer
-from diagrams.herb.closed_loop import EpisodeSettings, make_filter, run_episode
+from diagrams.herb.closed_loop import estimator_filter
+from diagrams.herb.episode import run_episode
 from diagrams.herb.report import write_episode
+from diagrams.herb.settings import EpisodeSettings
 from estimation.particles.belief import ParticleBelief
 from planning.hand.precontact import PreContactSettings
 
@@ -26,7 +28,7 @@ def episode(small_hand_solution, meshcat):
                                belief_mean=(0.30, 0.0, 0.0),
                                precontact=PreContactSettings(time_limit_s=2.0), seed=4)
     return run_episode(settings, solution, meshcat=meshcat, progress=False,
-                       filter_factory=make_filter("cpf", solution.model.world))
+                       filter=estimator_filter("cpf", solution.model.world))
 
 
 def test_episode_moves_the_hand_by_the_decided_actions(episode, small_hand_solution):
@@ -81,7 +83,7 @@ def test_drawer_draws_particles_mean_goal_and_sensors(meshcat):
     drawer = BeliefDrawer(meshcat, np.array([[-0.01, -0.01], [0.01, -0.01], [0.01, 0.01]]),
                           np.array([[0.1, -0.04], [0.14, 0.04]]),
                           np.array([[0.1, -0.03], [0.1, 0.03]]), belief, height_m=0.74,
-                          particles=2)
+                          object_rgba=(0.2, 0.6, 0.3, 1.0), particles=2)
     context = drawer.CreateDefaultContext()
     drawer.GetInputPort("belief").FixValue(context, belief)
     drawer.GetInputPort("palm_pose").FixValue(context, np.zeros(3))
@@ -105,3 +107,12 @@ def test_run_command_rejects_bad_settings_before_any_work(tmp_path, capsys):
     assert "particles must be >= 10" in capsys.readouterr().err
     assert main(["experiment", "closedloop", "--trials", "0", "--out", str(tmp_path)]) == 2
     assert "--trials must be >= 1" in capsys.readouterr().err
+
+
+def test_the_goal_is_never_drawn_in_the_object_colour():
+    from diagrams.belief_drawing import goal_rgba
+
+    for rgba in ((0.2, 0.6, 0.3, 1.0), (0.8, 0.15, 0.75, 1.0), (0.1, 0.6, 0.9, 1.0)):
+        goal = goal_rgba(rgba)
+        distance = np.linalg.norm(np.array([goal.r(), goal.g(), goal.b()]) - rgba[:3])
+        assert distance > 0.5

@@ -4,16 +4,14 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
 
-from diagrams.herb.systems import (
-    EXECUTOR_STATE_SIZE,
-    ActionExecutor,
-    HandController,
-    HandEstimator,
-)
+from diagrams.herb.controller import HandController
+from diagrams.herb.estimator import HandEstimator
+from diagrams.herb.executor import EXECUTOR_STATE_SIZE, ActionExecutor
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.filters import ConventionalParticleFilter
 from models.herb.kinematics import JointPath
 from models.planar.world import PlanarWorld
+from planning.protocols import PlanResult
 
 ACTIONS = np.array([[0.02, 0, 0], [0, 0.02, 0], [0, -0.02, 0], [0.02, 0.02, 0],
                     [0.02, -0.02, 0]])
@@ -40,10 +38,10 @@ class FakePlanner:
         self.ranking = ranking
         self.calls = []
 
-    def plan(self, belief, *, contact_seen, rng, last_action, reading):
-        self.calls.append((contact_seen, last_action, tuple(reading)))
-        return self.ranking[0], {"phase": "post-contact", "ranking": self.ranking,
-                                 "planning_ms": 1.0}
+    def plan(self, belief, *, rng, memory, contact_seen, last_action, reading):
+        self.calls.append((contact_seen, last_action, tuple(reading), memory))
+        return PlanResult(self.ranking[0], tuple(self.ranking), "post-contact", 1.0,
+                          memory=len(self.calls))
 
 
 def _belief(n=100):
@@ -56,7 +54,7 @@ def _belief(n=100):
 def test_estimator_updates_once_the_palm_has_travelled_5_mm():
     world = PlanarWorld.load("small_box", "fingertips")
     initial = _belief()
-    system = HandEstimator(lambda: ConventionalParticleFilter(world), initial, 2,
+    system = HandEstimator(ConventionalParticleFilter(world), initial, 2,
                            travel_m=0.005, check_period_s=0.01)
     context = system.CreateDefaultContext()
     readings = system.GetInputPort("sensor_contact").FixValue(context, np.zeros(2))
@@ -67,11 +65,12 @@ def test_estimator_updates_once_the_palm_has_travelled_5_mm():
     assert tracker is not None and tracker.updates == 0
     palm.GetMutableData().set_value(np.array([0.003, 0.0, 0.0]))  # 3 mm: not yet
     simulator.AdvanceTo(0.015)
-    assert tracker.updates == 0
+    assert system.tracker(simulator.get_context()) is tracker
     palm.GetMutableData().set_value(np.array([0.01, 0.0, 0.0]))
     readings.GetMutableData().set_value(np.array([1.0, 0.0]))
     simulator.AdvanceTo(0.025)
-    assert tracker.updates == 1
+    assert system.tracker(simulator.get_context()).updates == 1
+    assert tracker.updates == 0  # the earlier value is unchanged: state is a value
     out = simulator.get_context()
     assert system.GetOutputPort("contact_seen").Eval(out)[0] == 1.0
     mean = system.GetOutputPort("mean").Eval(out)
@@ -79,7 +78,7 @@ def test_estimator_updates_once_the_palm_has_travelled_5_mm():
 
 
 def _controller(planner, motion, on_infeasible="stop", horizon=5):
-    system = HandController(lambda: planner, motion, ACTIONS, _belief(), 2, horizon=horizon,
+    system = HandController(planner, motion, ACTIONS, _belief(), 2, horizon=horizon,
                             on_infeasible=on_infeasible, check_period_s=0.02)
     context = system.CreateDefaultContext()
     system.GetInputPort("belief").FixValue(context, _belief())
@@ -98,8 +97,21 @@ def test_controller_sends_the_best_feasible_action_when_the_executor_is_idle():
     simulator.AdvanceTo(0.0)
     np.testing.assert_array_equal(system.GetOutputPort("command").Eval(context), [1, 0])
     decision = system.decisions(context)[0]
-    assert decision.action == 0 and decision.rejected == [(3, "action 3 collides")]
-    assert planner.calls == [(True, None, (False, True))]
+    assert decision.action == 0 and decision.rejected == ((3, "action 3 collides"),)
+    assert planner.calls == [(True, None, (False, True), None)]
+
+
+def test_controller_keeps_the_planner_memory_in_its_context_and_hands_it_back():
+    planner = FakePlanner([0, 1, 2, 3, 4])
+    system, context, _ = _controller(planner, FakeMotion(), horizon=3)
+    copy = context.Clone()
+    Simulator(system, context).AdvanceTo(0.05)
+    assert [call[3] for call in planner.calls] == [None, 1, 2]
+    assert [call[1] for call in planner.calls] == [None, 0, 0]
+    # a context cloned before the run starts afresh: nothing was shared
+    assert system.decisions(copy) == ()
+    Simulator(system, copy).AdvanceTo(0.0)
+    assert planner.calls[-1][3] is None and len(system.decisions(copy)) == 1
 
 
 def test_controller_stops_when_the_preferred_action_is_infeasible():
@@ -120,7 +132,7 @@ def test_controller_waits_while_the_executor_moves():
 
 def test_controller_rejects_unknown_infeasibility_rule():
     with pytest.raises(ValueError, match="on_infeasible"):
-        HandController(FakePlanner, FakeMotion(), ACTIONS, _belief(), 2, horizon=1,
+        HandController(FakePlanner([0]), FakeMotion(), ACTIONS, _belief(), 2, horizon=1,
                        on_infeasible="clip")
 
 
@@ -160,8 +172,8 @@ def test_planar_poses_reads_the_palm_and_the_object_from_body_poses():
     from pydrake.math import RigidTransform, RotationMatrix
     from pydrake.systems.framework import DiagramBuilder
 
+    from diagrams.herb.poses import PlanarPoses
     from diagrams.herb.station import add_herb_plant
-    from diagrams.herb.systems import PlanarPoses
     from models.herb.mount import X_W_palm
     from models.herb.scene import SceneSpec
     from models.herb.tactile import TactileLayout

@@ -1,9 +1,11 @@
 """Particle beliefs, low-variance resampling, RMSE, KDE."""
 
 import numpy as np
+import pytest
 
 from estimation.particles.belief import ParticleBelief, low_variance_indices
 from estimation.particles.kde import log_density, silverman_bandwidth
+from models.pose import wrap_angle
 
 
 def test_low_variance_resampling_keeps_proportions():
@@ -55,3 +57,26 @@ def test_effective_sample_size_and_weighted_mean():
     mean = belief.mean()
     assert np.allclose(mean[:2], [0.025, 0.05])
     assert np.isclose(mean[2], np.arctan2(0.25, 0.75))
+
+
+def test_a_seven_joint_belief_declares_its_angular_columns():
+    rng = np.random.default_rng(3)
+    q = rng.normal(0.0, 0.1, (200, 7))
+    q[:, 6] += np.pi  # the last joint straddles the wrap-around
+    belief = ParticleBelief.uniform(q, angular=(6,))
+    mean = belief.mean()
+    assert mean.shape == (7,)
+    np.testing.assert_allclose(mean[:6], q[:, :6].mean(axis=0))
+    assert abs(abs(mean[6]) - np.pi) < 0.05
+    true = np.zeros(7)
+    true[6] = -np.pi
+    linear, angular = belief.rmse(true)
+    assert abs(angular - np.sqrt(np.mean(wrap_angle(q[:, 6] + np.pi) ** 2))) < 1e-12
+    assert abs(linear - np.sqrt(np.mean((q[:, :6] ** 2).sum(1)))) < 1e-12
+    resampled = belief.resample(50, rng=rng)
+    assert resampled.angular == (6,) and resampled.states.shape == (50, 7)
+
+
+def test_angular_columns_must_be_columns_of_the_state():
+    with pytest.raises(ValueError, match="angular columns"):
+        ParticleBelief.uniform(np.zeros((4, 2)))

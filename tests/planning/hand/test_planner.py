@@ -12,6 +12,7 @@ from planning.hand.precontact import PreContactSettings
 from planning.hand.solution import HandSolveSettings, solve_hand_problem
 from planning.pomdp.point_based import AlphaVectorPolicy
 from planning.pomdp.qmdp import solve_mdp
+from planning.protocols import Planner
 
 
 @pytest.fixture(scope="module")
@@ -38,29 +39,36 @@ def test_far_belief_follows_the_searched_trajectory_then_the_vectors(small_hand_
     planner = HandPlanner(m, qmdp, PreContactSettings(time_limit_s=5.0))
     belief = _belief(m, (0.40, 0.0, 0.0))
     rng = np.random.default_rng(1)
-    action, stats = planner.plan(belief, contact_seen=False, rng=rng)
-    trajectory = planner.trajectory.actions
-    assert len(trajectory) >= 1 and action == trajectory[0]
-    assert stats["phase"] == "pre-contact" and "search" in stats
-    assert sorted(stats["ranking"]) == list(range(5)) and stats["ranking"][0] == action
+    result = planner.plan(belief, contact_seen=False, rng=rng)
+    assert isinstance(planner, Planner)
+    trajectory = result.memory.trajectory.actions
+    assert len(trajectory) >= 1 and result.action == trajectory[0]
+    assert result.phase == "pre-contact" and "search" in result.stats
+    assert sorted(result.ranking) == list(range(5)) and result.ranking[0] == result.action
+    first = result
     for expected in trajectory[1:]:
-        action, stats = planner.plan(belief, contact_seen=False, rng=rng)
-        assert action == expected and "search" not in stats
-    action, stats = planner.plan(belief, contact_seen=False, rng=rng)
-    assert stats["phase"] == "post-contact"
-    assert action == qmdp.act(m.belief(belief.states, belief.weights))
+        result = planner.plan(belief, contact_seen=False, rng=rng, memory=result.memory)
+        assert result.action == expected and "search" not in result.stats
+    result = planner.plan(belief, contact_seen=False, rng=rng, memory=result.memory)
+    assert result.phase == "post-contact"
+    assert result.action == qmdp.act(m.belief(belief.states, belief.weights))
+    # the planner itself remembers nothing: the first answer's memory replays the second
+    again = planner.plan(belief, contact_seen=False, rng=rng, memory=first.memory)
+    assert again.action == (trajectory[1] if len(trajectory) > 1 else result.action)
 
 
 def test_contact_switches_to_the_post_contact_policy_for_good(small_hand_model, qmdp):
     m = small_hand_model
     planner = HandPlanner(m, qmdp, PreContactSettings(time_limit_s=5.0))
     belief = _belief(m, (0.40, 0.0, 0.0))
-    planner.plan(belief, contact_seen=False, rng=np.random.default_rng(2))
-    _, stats = planner.plan(belief, contact_seen=True, rng=np.random.default_rng(3))
-    assert stats["phase"] == "post-contact"
-    _, stats = planner.plan(belief, contact_seen=False, rng=np.random.default_rng(4))
-    assert stats["phase"] == "post-contact"
-    assert stats["planning_ms"] >= 0
+    result = planner.plan(belief, contact_seen=False, rng=np.random.default_rng(2))
+    result = planner.plan(belief, contact_seen=True, rng=np.random.default_rng(3),
+                          memory=result.memory)
+    assert result.phase == "post-contact"
+    result = planner.plan(belief, contact_seen=False, rng=np.random.default_rng(4),
+                          memory=result.memory)
+    assert result.phase == "post-contact"
+    assert result.planning_ms >= 0
 
 
 def test_thesis_planner_tracks_its_own_belief_with_the_executed_actions(small_hand_model,
@@ -75,15 +83,15 @@ def test_thesis_planner_tracks_its_own_belief_with_the_executed_actions(small_ha
     reference = HandPolicy(m, qmdp)
     reference.reset(belief, rng=np.random.default_rng(0))
     rng = np.random.default_rng(5)
-    action, stats = planner.plan(belief, contact_seen=False, rng=rng)
-    assert action == reference.act() and stats["phase"] == "post-contact"
+    result = planner.plan(belief, contact_seen=False, rng=rng)
+    assert result.action == reference.act() and result.phase == "post-contact"
     for reading in ([False, False], [True, False], [False, False]):
         reading = np.array(reading)
-        reference.observe(action, reading, rng=rng)
-        action, stats = planner.plan(belief, contact_seen=False, rng=rng, last_action=action,
-                                     reading=reading)
-        assert action == reference.act() and stats["ranking"][0] == action
-    np.testing.assert_allclose(planner.policy.discrete, reference.discrete)
+        reference.observe(result.action, reading, rng=rng)
+        result = planner.plan(belief, contact_seen=False, rng=rng, memory=result.memory,
+                              last_action=result.action, reading=reading)
+        assert result.action == reference.act() and result.ranking[0] == result.action
+    np.testing.assert_allclose(result.memory.discrete, reference.discrete)
 
 
 def test_solve_settings_key_names_the_budget_not_its_spelling():

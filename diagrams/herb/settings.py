@@ -1,0 +1,93 @@
+"""The settings of one closed-loop episode (thesis sec. 6.5)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from models.contact import SimulationConfig
+from models.herb.tactile import TactileNoise
+from planning.hand.precontact import PreContactSettings
+
+ESTIMATORS = ("mpf", "cpf")
+PLANNER_BELIEFS = ("estimator", "thesis")
+POLICIES = ("qmdp", "pomdp")
+#: The thesis' three initial beliefs (sec. 6.5): means 35 cm ahead at lateral offsets 12,
+#: 0 and 6 cm; its figure shows the first to the hand's right (-y).
+THESIS_BELIEF_MEANS = ((0.35, -0.12, 0.0), (0.35, 0.0, 0.0), (0.35, 0.06, 0.0))
+TOPPLED_RAD = float(np.deg2rad(45.0))
+"""An object tilted further than this has fallen over; the episode ends."""
+
+
+@dataclass(frozen=True)
+class EpisodeSettings:
+    """One closed-loop episode.
+
+    Attributes:
+        scene: scene name or path (its object is replaced by ``object_name``).
+        object_name: the pushed object; it must be the planning model's. The thesis'
+            real-robot trials pushed a bottle (sec. 6.5), and so do these: the small box
+            of the simulations (3.5 cm x 5 cm, 12 cm tall) topples in Drake when a finger
+            pushes it above about 5 cm, which HERB's fingers do (F2 at about 8.5 cm).
+        policy: post-contact policy, ``qmdp`` or ``pomdp``.
+        estimator: ``mpf`` (manifold particle filter, analytic manifold) or ``cpf``.
+        planner_belief: what the policy acts on: ``estimator`` (the estimator system's
+            belief, discretised after contact; :class:`~planning.hand.planner.HandPlanner`)
+            or ``thesis`` (the policy's own particle filter, then the planning model's
+            discrete Bayes filter, sec. 6.4.1;
+            :class:`~planning.hand.planner.ThesisHandPlanner`).
+        belief_mean: (x m, y m, theta rad) of the initial belief, hand frame.
+        belief_std: its standard deviations (thesis sec. 6.5: 5 cm; 15 deg as sec. 6.4.2).
+        particles: estimator particles.
+        horizon: decisions per episode.
+        on_infeasible: ``stop``: the episode ends when the policy's action is infeasible
+            (the thesis' real-robot rule, sec. 6.5); ``next``: fall back to the next-ranked
+            feasible action (at the arm's reach this drags a captured object sideways, so
+            it is not the default).
+        precontact: the pre-contact search's settings.
+        hand_speed_m_per_s: nominal palm speed.
+        travel_m: palm travel between estimator updates (m).
+        posture_weight: the IK's pull towards HERB's home posture
+            (:class:`~models.herb.kinematics.PlanarHandIK`); without it (0) warm-started
+            motions drift into postures that collide in the middle of the workspace (4 of
+            40 forward-biased random walks, against none with 0.05).
+        layout: Drake tactile layout (``distal_links``: every face of each distal link).
+        noise: the tactile sensors' noise (thesis: 10 % wrong readings during contact).
+        time_step_s: the plant's time step.
+        seed: seeds the true pose, the particles, the sensors' noise, the filter and the
+            planner.
+    """
+
+    scene: str = "closed_loop"
+    object_name: str = "bottle"
+    policy: str = "pomdp"
+    estimator: str = "mpf"
+    planner_belief: str = "estimator"
+    belief_mean: tuple[float, float, float] = THESIS_BELIEF_MEANS[1]
+    belief_std: tuple[float, float, float] = (0.05, 0.05, float(np.deg2rad(15.0)))
+    particles: int = 500
+    horizon: int = 30
+    on_infeasible: str = "stop"
+    precontact: PreContactSettings = field(default_factory=PreContactSettings)
+    hand_speed_m_per_s: float = 0.05
+    travel_m: float = 0.005
+    posture_weight: float = 0.05
+    layout: str = "distal_links"
+    noise: TactileNoise = field(default_factory=TactileNoise)
+    time_step_s: float = SimulationConfig().time_step_s
+    seed: int = 0
+
+    def __post_init__(self):
+        if self.policy not in POLICIES:
+            raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
+        if self.estimator not in ESTIMATORS:
+            raise ValueError(f"estimator must be one of {ESTIMATORS}, got {self.estimator!r}")
+        if self.planner_belief not in PLANNER_BELIEFS:
+            raise ValueError(f"planner_belief must be one of {PLANNER_BELIEFS}, got "
+                             f"{self.planner_belief!r}")
+        if self.particles < 10 or self.horizon < 1:
+            raise ValueError("particles must be >= 10 and horizon >= 1")
+        if self.on_infeasible not in ("next", "stop"):
+            raise ValueError(f"on_infeasible must be 'next' or 'stop', got "
+                             f"{self.on_infeasible!r}")
