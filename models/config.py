@@ -37,21 +37,63 @@ class ConfigError(ValueError):
 
 
 def load_yaml(path: Path) -> dict[str, Any]:
-    """Read a YAML mapping from ``path``.
+    """Read a YAML mapping from the UTF-8 text file ``path``.
 
     Raises:
-        ConfigError: when the file is missing, is not valid YAML, or is not a mapping.
+        ConfigError: when the file is missing or unreadable, is not UTF-8 text, is not
+            valid YAML (the message gives the file, line and column, 1-based, as an editor
+            shows them), or is not a mapping.
     """
     path = Path(path)
     if not path.is_file():
         raise ConfigError(str(path), "", "no such file")
     try:
-        data = yaml.safe_load(path.read_text())
+        raw = path.read_bytes()
+    except OSError as err:
+        raise ConfigError(str(path), "", f"cannot be read ({err.strerror or err})") from err
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line, column = _line_column(raw, err.start)
+        raise ConfigError(
+            str(path), "", f"not UTF-8 text: byte 0x{raw[err.start]:02x} at line {line}, "
+            f"column {column} cannot be decoded (save the file as UTF-8)"
+        ) from err
+    try:
+        data = yaml.safe_load(text)
     except yaml.YAMLError as err:
-        raise ConfigError(str(path), "", f"not valid YAML ({err})") from err
+        raise ConfigError(str(path), "", f"not valid YAML: {_yaml_problem(err, text)}") from err
     if not isinstance(data, dict):
         raise ConfigError(str(path), "", "expected a mapping of fields at the top level")
     return data
+
+
+def _line_column(text: str | bytes, offset: int) -> tuple[int, int]:
+    """1-based (line, column) of the character (or byte) at ``offset`` of ``text``."""
+    newline = "\n" if isinstance(text, str) else b"\n"
+    line_start = text.rfind(newline, 0, offset) + 1
+    return text.count(newline, 0, offset) + 1, offset - line_start + 1
+
+
+def _yaml_problem(err: yaml.YAMLError, text: str) -> str:
+    """What PyYAML found wrong and where (1-based line and column), without the name
+    ``<unicode string>`` that PyYAML gives a parsed string."""
+    if isinstance(err, yaml.reader.ReaderError):
+        line, column = _line_column(text, err.position)
+        return f"line {line}, column {column}: {err.reason} (character #x{err.character:04x})"
+    if isinstance(err, yaml.MarkedYAMLError):
+        mark = err.problem_mark or err.context_mark
+        problem = err.problem or err.context or "syntax error"
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        context = ""
+        if err.context and err.problem:
+            context = f" ({err.context}"
+            if err.context_mark is not None:
+                context += (f" started at line {err.context_mark.line + 1}, "
+                            f"column {err.context_mark.column + 1}")
+            context += ")"
+        return f"{where}{problem}{context}"
+    return str(err)
 
 
 def resolve_asset(kind: str, name_or_path: str | Path) -> Path:

@@ -84,18 +84,44 @@ class ContactMaterial:
 
     @staticmethod
     def from_fields(fields: Fields, default: ContactMaterial) -> ContactMaterial:
-        """Read optional overrides (``hydroelastic_modulus_pa`` (or ``rigid: true``),
-        ``mu_static``, ``mu_dynamic``) on top of ``default``."""
-        rigid = fields.boolean("rigid", False)
-        modulus = fields.number("hydroelastic_modulus_pa", default.hydroelastic_modulus_pa or 1e6,
-                                min=1e3, max=1e12)
-        mu_dynamic = fields.number("mu_dynamic", default.mu_dynamic, min=0.0, max=5.0)
-        mu_static = fields.number("mu_static", max(default.mu_static, mu_dynamic), min=0.0, max=5.0)
+        """Read a ``contact`` section: overrides on top of ``default``.
+
+        Every field is optional, by design: a body without overrides is made of its
+        ``default`` material (the material constants below). The fields:
+
+        - ``rigid: true`` (rigid hydroelastic) or ``hydroelastic_modulus_pa`` (Pa, compliant),
+          not both; with neither, the default's compliance (and modulus) is kept.
+          ``rigid: false`` over a rigid default needs a modulus.
+        - ``mu_static`` and ``mu_dynamic`` (dimensionless), together or not at all (with
+          one only, the other would silently stay the default's).
+
+        Dissipation, relaxation time and resolution hint always come from ``default``.
+
+        Raises:
+            ConfigError: naming the file and field of a missing, malformed or contradictory
+                entry.
+        """
+        rigid = fields.boolean("rigid", default.hydroelastic_modulus_pa is None)
+        if rigid:
+            if fields.has("hydroelastic_modulus_pa"):
+                raise fields.error("hydroelastic_modulus_pa",
+                                   "a rigid material has no modulus (remove one of the two)")
+            modulus = None
+        elif default.hydroelastic_modulus_pa is None:
+            modulus = fields.number("hydroelastic_modulus_pa", min=1e3, max=1e12)
+        else:
+            modulus = fields.number("hydroelastic_modulus_pa", default.hydroelastic_modulus_pa,
+                                    min=1e3, max=1e12)
+        if fields.has("mu_static") or fields.has("mu_dynamic"):
+            mu_dynamic = fields.number("mu_dynamic", min=0.0, max=5.0)
+            mu_static = fields.number("mu_static", min=0.0, max=5.0)
+        else:
+            mu_dynamic, mu_static = default.mu_dynamic, default.mu_static
         if mu_static < mu_dynamic:
             raise fields.error("mu_static", f"{mu_static} must be >= mu_dynamic ({mu_dynamic})")
         fields.done()
         return ContactMaterial(
-            hydroelastic_modulus_pa=None if rigid else modulus,
+            hydroelastic_modulus_pa=modulus,
             mu_static=mu_static,
             mu_dynamic=mu_dynamic,
             dissipation_s_per_m=default.dissipation_s_per_m,

@@ -1,14 +1,19 @@
 """Movable objects and obstacles: shapes as data, built into the plant as free or welded bodies.
 
-An object file (``models/assets/objects/<name>.yaml`` or any path) gives a shape, a mass
-and optionally contact-material overrides. Shapes:
+An object file (``models/assets/objects/<name>.yaml`` or any path) gives a shape, its
+dimensions and a mass (``mass_kg``, kg; required), and optionally a display colour and
+contact-material overrides (``contact``: see :meth:`ContactMaterial.from_fields
+<models.contact.ContactMaterial.from_fields>`; without it an object is made of
+:data:`~models.contact.OBJECT_MATERIAL`). Shapes:
 
-- ``box``: ``size: [x, y, z]`` (m);
-- ``cylinder``: ``radius``, ``height`` (m);
-- ``polygon``: ``vertices: [[x, y], ...]`` (m, convex, counter-clockwise) and ``height``;
-  the body frame is placed at the polygon's area centroid;
-- ``ellipse``: ``axes: [length_x, length_y]`` (m, full lengths), ``segments``, ``height``;
-  built as an inscribed convex polygon.
+- ``box``: ``size_m: [x, y]`` (m);
+- ``cylinder``: ``radius_m`` (m);
+- ``polygon``: ``vertices_m: [[x, y], ...]`` (m, convex, counter-clockwise); the body
+  frame is placed at the polygon's area centroid;
+- ``ellipse``: ``axes_m: [length_x, length_y]`` (m, full lengths) and ``segments`` (the
+  number of vertices, 8-256); built as an inscribed convex polygon.
+
+and every shape a ``height_m`` (m, along z).
 
 Every object's body frame sits at the centre of its footprint, half its height above the
 support surface, with z up; :meth:`ObjectSpec.footprint` is the planar outline (used by
@@ -74,32 +79,58 @@ class ObjectSpec:
 
     @staticmethod
     def from_fields(
-        fields: Fields, *, default_name: str, default_material: ContactMaterial = OBJECT_MATERIAL
+        fields: Fields,
+        *,
+        default_name: str,
+        default_material: ContactMaterial = OBJECT_MATERIAL,
+        default_mass_kg: float | None = None,
     ) -> ObjectSpec:
-        """Parse an object (or obstacle) mapping; the caller calls ``fields.done()``."""
+        """Parse an object (or obstacle) mapping; the caller calls ``fields.done()``.
+
+        Every dimension and, unless ``default_mass_kg`` is given, ``mass_kg`` are required.
+        Two fields are optional by design: ``rgba`` (display only) and ``contact``, whose
+        overrides apply on top of ``default_material`` (:data:`~models.contact.OBJECT_MATERIAL`
+        for objects: 2e6 Pa, mu 0.4), the material of every built-in object without a
+        ``contact`` section (``box``, ``bottle``, ``small_box``).
+
+        Args:
+            fields: the mapping.
+            default_name: name when the mapping has no ``name``.
+            default_material: the contact material that ``contact`` overrides.
+            default_mass_kg: mass (kg) when ``mass_kg`` is absent; ``None`` (the default)
+                makes ``mass_kg`` required. Only for bodies whose mass never enters the
+                dynamics (the welded obstacles of :mod:`models.herb.scene`).
+
+        Raises:
+            ConfigError: naming the file and field of a missing or malformed entry.
+        """
         name = fields.string("name", default_name)
         shape = fields.string("shape", choices=SHAPES)
-        mass = fields.number("mass_kg", 1.0, min=1e-4, max=1e3)
         height = fields.number("height_m", min=1e-3, max=2.0)
+        if shape == "box":
+            geometry = dict(shape="box", size_m=fields.vector("size_m", 2, min=1e-3, max=3.0))
+        elif shape == "cylinder":
+            geometry = dict(shape="cylinder",
+                            radius_m=fields.number("radius_m", min=1e-3, max=1.0))
+        else:
+            if shape == "ellipse":
+                axes = fields.vector("axes_m", 2, min=1e-3, max=3.0)
+                segments = int(fields.number("segments", min=8, max=256, integer=True))
+                angles = 2 * np.pi * np.arange(segments) / segments
+                vertices = np.column_stack([axes[0] / 2 * np.cos(angles),
+                                            axes[1] / 2 * np.sin(angles)])
+            else:
+                vertices = _parse_vertices(fields, fields.raw("vertices_m"))
+            geometry = dict(shape="polygon", vertices_m=_centred(vertices))
+        if default_mass_kg is None:
+            mass = fields.number("mass_kg", min=1e-4, max=1e3)
+        else:
+            mass = fields.number("mass_kg", default_mass_kg, min=1e-4, max=1e3)
         rgba = fields.vector("rgba", 4, (0.85, 0.55, 0.2, 1.0), min=0.0, max=1.0)
         material = (ContactMaterial.from_fields(fields.sub("contact"), default_material)
                     if fields.has("contact") else default_material)
-        common = dict(name=name, height_m=height, mass_kg=mass, material=material,
-                      rgba=tuple(rgba), source=fields.source)
-        if shape == "box":
-            size = fields.vector("size_m", 2, min=1e-3, max=3.0)
-            return ObjectSpec(shape="box", size_m=size, **common)
-        if shape == "cylinder":
-            radius = fields.number("radius_m", min=1e-3, max=1.0)
-            return ObjectSpec(shape="cylinder", radius_m=radius, **common)
-        if shape == "ellipse":
-            axes = fields.vector("axes_m", 2, min=1e-3, max=3.0)
-            segments = int(fields.number("segments", 32, min=8, max=256, integer=True))
-            angles = 2 * np.pi * np.arange(segments) / segments
-            vertices = np.column_stack([axes[0] / 2 * np.cos(angles), axes[1] / 2 * np.sin(angles)])
-        else:
-            vertices = _parse_vertices(fields, fields.raw("vertices_m"))
-        return ObjectSpec(shape="polygon", vertices_m=_centred(vertices), **common)
+        return ObjectSpec(name=name, height_m=height, mass_kg=mass, material=material,
+                          rgba=tuple(rgba), source=fields.source, **geometry)
 
     def footprint(self) -> np.ndarray:
         """(V, 2) counter-clockwise outline of the object in its body frame (m).

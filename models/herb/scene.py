@@ -5,6 +5,18 @@ A scene is a YAML file (built-in: ``empty``, ``right_obstacles``, ``left_obstacl
 ``{x_m, y_m, theta_deg}``. The world frame has its origin on the floor under HERB's base
 centre, x forward, z up. Object and obstacle files are named as built-in objects or as
 paths relative to the scene file.
+
+Every physical quantity is required (the table's size, height, centre and thickness, every
+pose's ``x_m``, ``y_m`` and ``theta_deg``, the hand's height), with two deliberate
+exceptions for obstacles, on which every built-in scene relies:
+
+- an obstacle's ``mass_kg`` may be omitted (:data:`OBSTACLE_MASS_KG`): obstacles are
+  welded to the world, so their mass never enters the dynamics;
+- an obstacle without a ``contact`` section is made of
+  :data:`~models.contact.OBSTACLE_MATERIAL` (5e6 Pa, mu 0.5).
+
+``obstacles`` may be omitted for a table without any; ``name`` defaults to the file's
+stem, ``description`` to nothing and ``arm`` to ``right``.
 """
 
 from __future__ import annotations
@@ -19,6 +31,9 @@ from models.contact import OBSTACLE_MATERIAL
 from models.objects import ObjectSpec
 
 ARMS = ("right", "left")
+#: Mass (kg) of an obstacle whose entry gives none: obstacles are welded to the world, so
+#: it never enters the dynamics (Drake still wants a positive mass for every body).
+OBSTACLE_MASS_KG = 1.0
 
 
 @dataclass(frozen=True)
@@ -37,7 +52,7 @@ class PlanarPose:
         pose = PlanarPose(
             x=fields.number("x_m", min=-5.0, max=5.0),
             y=fields.number("y_m", min=-5.0, max=5.0),
-            theta=np.deg2rad(fields.number("theta_deg", 0.0, min=-360.0, max=360.0)),
+            theta=np.deg2rad(fields.number("theta_deg", min=-360.0, max=360.0)),
         )
         fields.done()
         return pose
@@ -107,7 +122,7 @@ class SceneSpec:
             top_height_m=table_f.number("top_height_m", min=0.1, max=2.0),
             size_m=table_f.vector("size_m", 2, min=0.1, max=5.0),
             center_xy_m=table_f.vector("center_xy_m", 2, min=-5.0, max=5.0),
-            thickness_m=table_f.number("thickness_m", 0.04, min=0.005, max=0.5),
+            thickness_m=table_f.number("thickness_m", min=0.005, max=0.5),
         )
         table_f.done()
         object_f = fields.sub("object")
@@ -123,7 +138,8 @@ class SceneSpec:
         for item in fields.items("obstacles", []):
             pose = PlanarPose.from_fields(item.sub("pose"))
             spec = ObjectSpec.from_fields(item, default_name=f"obstacle_{len(obstacles)}",
-                                          default_material=OBSTACLE_MATERIAL)
+                                          default_material=OBSTACLE_MATERIAL,
+                                          default_mass_kg=OBSTACLE_MASS_KG)
             item.done()
             obstacles.append(Obstacle(spec, pose))
         names = [o.spec.name for o in obstacles]

@@ -63,7 +63,19 @@ class TactileLayout:
 
     @staticmethod
     def load(name_or_path: str | Path = "default") -> TactileLayout:
-        """Load a layout by built-in name (``default``, ``fingertips``, ``dense``) or path."""
+        """Load a layout by built-in name (``default``, ``fingertips``, ``dense``,
+        ``distal_links``) or path.
+
+        A layout holds no physical quantity (the patches' sizes follow from the hand file):
+        it says which surfaces are split into how many patches. Omitted fields take the
+        ``default`` layout's values (all fingers, fingertips, one inner patch per link,
+        three palm strips, no ``distal_outer`` patch); only ``distal_links`` turns
+        ``distal_outer`` on, the other built-in layouts rely on it being off.
+
+        Raises:
+            ConfigError: naming the file and field of a malformed entry, or when the layout
+                defines no patch.
+        """
         fields = Fields.from_file(resolve_asset("tactile", name_or_path))
         layout = TactileLayout(
             fingers=fields.string_list("fingers", FINGERS, choices=FINGERS),

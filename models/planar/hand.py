@@ -83,13 +83,29 @@ class PlanarSensorLayout:
 
     @staticmethod
     def load(name_or_path: str | Path = "medium") -> PlanarSensorLayout:
-        """Load ``low``, ``medium``, ``high`` (built in) or a layout file by path."""
+        """Load ``low``, ``medium``, ``high``, ``fingertips``, ``links`` (built in) or a
+        layout file by path.
+
+        ``front_sensors`` is required for ``kind: front``. The other fields are optional by
+        design, and every built-in layout relies on their defaults: ``kind`` is ``front``;
+        a ``links`` layout has one sensor per link (``front_sensors``, if given, must be
+        5); ``min_facing`` is 0 (every forward-facing edge is front) and
+        ``probe_radius_m`` 0.005 m (the smallest pushed object: no object fits through the
+        fingertips' 6 mm gap), both modelling choices of the front contour, not measured
+        quantities.
+
+        Raises:
+            ConfigError: naming the file and field of a missing or malformed entry.
+        """
         path = resolve_asset("planar_sensors", name_or_path)
         fields = Fields.from_file(path)
         kind = fields.string("kind", "front", choices=LAYOUT_KINDS)
         count = (fields.number("front_sensors", len(LINKS), min=1, max=60, integer=True)
                  if kind == "links" else
                  fields.number("front_sensors", min=1, max=60, integer=True))
+        if kind == "links" and count != len(LINKS):
+            raise fields.error("front_sensors", f"a links layout has one sensor per link "
+                                                f"({len(LINKS)}), got {count}")
         layout = PlanarSensorLayout(
             name=path.stem,
             front_sensors=int(count),

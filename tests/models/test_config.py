@@ -12,7 +12,8 @@ from models.objects import ObjectSpec
 
 GOOD_SCENE = textwrap.dedent("""\
     arm: right
-    table: {top_height_m: 0.735, size_m: [0.74, 1.85], center_xy_m: [0.9, 0.0]}
+    table: {top_height_m: 0.735, size_m: [0.74, 1.85], center_xy_m: [0.9, 0.0],
+            thickness_m: 0.04}
     object:
       name: box
       pose: {x_m: 0.84, y_m: -0.25, theta_deg: 0}
@@ -73,6 +74,32 @@ def test_missing_required_field(tmp_path):
         SceneSpec.load(path)
 
 
+@pytest.mark.parametrize("mutation,field", ids=["thickness", "object_theta", "hand_theta"],
+                         argvalues=[
+    (("center_xy_m: [0.9, 0.0],\n        thickness_m: 0.04}", "center_xy_m: [0.9, 0.0]}"),
+     "table.thickness_m"),
+    (("x_m: 0.84, y_m: -0.25, theta_deg: 0}", "x_m: 0.84, y_m: -0.25}"), "object.pose.theta_deg"),
+    (("x_m: 0.68, y_m: -0.25, theta_deg: 0}", "x_m: 0.68, y_m: -0.25}"), "hand.start.theta_deg"),
+])
+def test_scene_physical_fields_are_required(tmp_path, mutation, field):
+    text = GOOD_SCENE.replace(*mutation, 1)
+    assert text != GOOD_SCENE
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError, match=f"field '{field}': required field is missing") as err:
+        SceneSpec.load(path)
+    assert str(path) in str(err.value)
+
+
+def test_obstacles_may_omit_their_mass(tmp_path):
+    """Obstacles are welded: their mass never enters the dynamics (documented default)."""
+    path = write(tmp_path, GOOD_SCENE + textwrap.dedent("""\
+        obstacles:
+          - {name: can, shape: cylinder, radius_m: 0.03, height_m: 0.1,
+             pose: {x_m: 0.9, y_m: 0.2, theta_deg: 0}}
+        """))
+    assert SceneSpec.load(path).obstacles[0].spec.mass_kg == 1.0
+
+
 def test_not_yaml_and_not_a_mapping(tmp_path):
     with pytest.raises(ConfigError, match="not valid YAML"):
         SceneSpec.load(write(tmp_path, "arm: [right\n"))
@@ -117,7 +144,7 @@ def test_user_polygon_object_is_recentred(tmp_path):
 def test_non_convex_polygon_rejected(tmp_path):
     path = tmp_path / "bad.yaml"
     path.write_text("shape: polygon\nvertices_m: [[0, 0], [0.1, 0], [0.02, 0.02], [0, 0.1]]\n"
-                    "height_m: 0.05\n")
+                    "height_m: 0.05\nmass_kg: 0.2\n")
     with pytest.raises(ConfigError, match="'vertices_m': the polygon must be convex"):
         ObjectSpec.load(path)
 
@@ -130,3 +157,85 @@ def test_tactile_layout_errors(tmp_path):
     path.write_text("palm_strips: 2.5\n")
     with pytest.raises(ConfigError, match="'palm_strips': expected an integer"):
         TactileLayout.load(path)
+
+
+OBJECT = "shape: box\nsize_m: [0.05, 0.1]\nheight_m: 0.12\nmass_kg: 0.3\n"
+
+
+@pytest.mark.parametrize("text,field", ids=["mass", "segments"], argvalues=[
+    (OBJECT.replace("mass_kg: 0.3\n", ""), "mass_kg"),
+    ("shape: ellipse\naxes_m: [0.1, 0.13]\nheight_m: 0.013\nmass_kg: 1.1\n", "segments"),
+])
+def test_object_physical_fields_are_required(tmp_path, text, field):
+    path = tmp_path / "thing.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=f"field '{field}': required field is missing") as err:
+        ObjectSpec.load(path)
+    assert str(path) in str(err.value)
+
+
+def test_contact_overrides_give_both_friction_coefficients(tmp_path):
+    path = tmp_path / "thing.yaml"
+    path.write_text(OBJECT + "contact: {mu_dynamic: 0.6}\n")
+    with pytest.raises(ConfigError, match="'contact.mu_static': required"):
+        ObjectSpec.load(path)
+    path.write_text(OBJECT + "contact: {mu_static: 0.6}\n")
+    with pytest.raises(ConfigError, match="'contact.mu_dynamic': required"):
+        ObjectSpec.load(path)
+    path.write_text(OBJECT + "contact: {mu_static: 0.6, mu_dynamic: 0.5}\n")
+    material = ObjectSpec.load(path).material
+    assert (material.mu_static, material.mu_dynamic) == (0.6, 0.5)
+
+
+def test_contact_modulus_with_rigid_is_a_contradiction(tmp_path):
+    path = tmp_path / "thing.yaml"
+    path.write_text(OBJECT + "contact: {rigid: true, hydroelastic_modulus_pa: 1.0e+7}\n")
+    with pytest.raises(ConfigError, match="'contact.hydroelastic_modulus_pa'"):
+        ObjectSpec.load(path)
+    path.write_text(OBJECT + "contact: {rigid: true}\n")
+    assert ObjectSpec.load(path).material.hydroelastic_modulus_pa is None
+
+
+def test_contact_overrides_keep_a_rigid_default_rigid():
+    from models.config import Fields
+    from models.contact import TABLE_MATERIAL, ContactMaterial
+
+    material = ContactMaterial.from_fields(
+        Fields({"mu_static": 0.2, "mu_dynamic": 0.2}, "table.yaml", "contact"), TABLE_MATERIAL)
+    assert material.hydroelastic_modulus_pa is None
+    with pytest.raises(ConfigError, match="'contact.hydroelastic_modulus_pa': required"):
+        ContactMaterial.from_fields(Fields({"rigid": False}, "table.yaml", "contact"),
+                                    TABLE_MATERIAL)
+
+
+@pytest.mark.parametrize("name", ["box", "bottle", "rect1", "ellip2", "butter", "small_box"])
+def test_builtin_objects_keep_their_numbers(name):
+    """The built-in files give every physical field; these are the values they had."""
+    expected = {"box": 0.3, "bottle": 0.4, "rect1": 0.837, "ellip2": 1.110, "butter": 1.197,
+                "small_box": 0.15}
+    spec = ObjectSpec.load(name)
+    assert spec.mass_kg == expected[name]
+    if name == "ellip2":
+        assert len(spec.vertices_m) == 48
+
+
+@pytest.mark.parametrize("text,line,column", ids=["flow", "indent", "character"], argvalues=[
+    ("arm: right\ntable: [1, 2\n", 3, 1),
+    ("arm: right\nhand:\n  a: 1\n   b: 2\n", 4, 5),
+    ("arm: right\nname: \"a\x07\"\n", 2, 9),
+])
+def test_yaml_syntax_error_names_the_file_line_and_column(tmp_path, text, line, column):
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError) as err:
+        SceneSpec.load(path)
+    message = str(err.value)
+    assert message.startswith(f"{path}: not valid YAML: line {line}, column {column}: ")
+    assert "<unicode string>" not in message
+
+
+def test_file_that_is_not_utf8_names_the_file(tmp_path):
+    path = tmp_path / "scene.yaml"
+    path.write_bytes(GOOD_SCENE.replace("right", "r\xe9ght").encode("latin-1"))
+    with pytest.raises(ConfigError, match="not UTF-8 text: byte 0xe9 at line 1, column 7") as err:
+        SceneSpec.load(path)
+    assert str(err.value).startswith(f"{path}: ")

@@ -39,3 +39,14 @@ def test_bad_layout_file_names_the_field(tmp_path):
     path.write_text("front_sensors: 0\n")
     with pytest.raises(ConfigError, match="front_sensors"):
         PlanarSensorLayout.load(path)
+
+
+def test_front_layout_needs_its_sensor_count_and_links_layout_has_five(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("min_facing: 0.1\n")
+    with pytest.raises(ConfigError, match="'front_sensors': required field is missing"):
+        PlanarSensorLayout.load(path)
+    path.write_text("kind: links\nfront_sensors: 3\n")
+    with pytest.raises(ConfigError, match="'front_sensors': a links layout has one sensor per"):
+        PlanarSensorLayout.load(path)
+    assert PlanarSensorLayout.load("links").front_sensors == 5
