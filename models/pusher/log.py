@@ -108,7 +108,14 @@ class PushLog:
         path = Path(path)
         if not path.is_file():
             raise LogFormatError(f"{path}: no such log file")
-        lines = path.read_text().splitlines()
+        raw = path.read_bytes()
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as err:
+            line = raw.count(b"\n", 0, err.start) + 1
+            raise LogFormatError(f"{path}:{line}: not UTF-8 text (byte 0x{raw[err.start]:02x} "
+                                 "cannot be decoded)") from err
+        lines = text.splitlines()
         if not lines or lines[0].strip() != f"# {MAGIC}":
             raise LogFormatError(f"{path}:1: expected the first line '# {MAGIC}'")
         meta: dict[str, str] = {}
@@ -131,20 +138,26 @@ class PushLog:
         try:
             table = np.loadtxt(lines[row + 1:], delimiter=",", ndmin=2)
         except ValueError as err:
-            raise LogFormatError(f"{path}: a data row is not numeric ({err})") from err
+            raise LogFormatError(_bad_row(path, lines, row + 1, names)
+                                 or f"{path}: the data rows cannot be read") from err
         if table.shape[0] == 0:
             raise LogFormatError(f"{path}: no data rows")
         if table.shape[1] != len(names):
-            raise LogFormatError(f"{path}: rows have {table.shape[1]} values for "
-                                 f"{len(names)} columns")
+            raise LogFormatError(_bad_row(path, lines, row + 1, names)
+                                 or f"{path}: rows have {table.shape[1]} values for "
+                                    f"{len(names)} columns")
         col = {n: table[:, i] for i, n in enumerate(names)}
+        # The file's line number (1-based, as an editor shows it) of each data row:
+        # np.loadtxt skipped blank and comment-only lines.
+        line_of_row = [i + 1 for i in range(row + 1, len(lines))
+                       if lines[i].split("#", 1)[0].strip()]
         t = col["t_s"]
         if np.any(np.diff(t) <= 0):
-            bad = int(np.argmax(np.diff(t) <= 0)) + row + 3
+            bad = line_of_row[int(np.argmax(np.diff(t) <= 0)) + 1]
             raise LogFormatError(f"{path}:{bad}: column t_s must increase")
         for name in COLUMNS[:10]:
             if not np.all(np.isfinite(col[name])):
-                bad = int(np.argmax(~np.isfinite(col[name]))) + row + 2
+                bad = line_of_row[int(np.argmax(~np.isfinite(col[name])))]
                 raise LogFormatError(f"{path}:{bad}: column {name} must be finite")
         try:
             radius = float(meta["rod_radius_m"])
@@ -164,3 +177,35 @@ class PushLog:
                        stack("truth_x_m", "truth_y_m", "truth_theta_rad"),
                        stack("carriage_x_m", "carriage_y_m", "carriage_yaw_rad"),
                        meta["object"], radius, threshold, meta.get("surface", ""), extra)
+
+
+def _bad_row(path: Path, lines: list[str], first: int, names: list[str]) -> str:
+    """The first malformed data row of ``lines[first:]``, as ``'<file>:<line>: why'``.
+
+    Lines are numbered as an editor shows them: 1-based, counting every line of the file
+    (the magic line is line 1). Blank lines and ``#`` comments are skipped, as
+    ``np.loadtxt`` skips them, and values are parsed by ``np.loadtxt`` itself. Returns ''
+    when every row has ``len(names)`` numbers.
+    """
+    for index in range(first, len(lines)):
+        data = lines[index].split("#", 1)[0].strip()
+        if not data:
+            continue
+        values = data.split(",")
+        where = f"{path}:{index + 1}"
+        if len(values) != len(names):
+            return f"{where}: {len(values)} values for the {len(names)} columns of the header"
+        for name, value in zip(names, values, strict=True):
+            if not _is_number(value):
+                return f"{where}: column {name}: {value.strip()!r} is not a number"
+    return ""
+
+
+def _is_number(text: str) -> bool:
+    """Does ``np.loadtxt`` read ``text`` (one comma-free field) as a number?"""
+    if not text.strip():
+        return False
+    try:
+        return np.loadtxt([text], delimiter=",", ndmin=1).size == 1
+    except ValueError:
+        return False

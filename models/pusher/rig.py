@@ -140,56 +140,46 @@ class PusherSliderRig:
 
     @staticmethod
     def load(path: str | Path = DEFAULT_RIG) -> PusherSliderRig:
-        """Read a rig file; every field is checked (file and field named on error)."""
+        """Read a rig file; every field is required and checked (file and field named on
+        error). The dataclass defaults above are the built-in file's numbers, for code that
+        builds a rig directly; a file never falls back on them."""
         fields = Fields.from_file(Path(path))
-        d = PusherSliderRig()
         surfaces_raw = fields.sub("surfaces")
         surfaces = {}
         for name in surfaces_raw.keys():
             surfaces[name] = surfaces_raw.number(name, min=0.01, max=2.0)
         surfaces_raw.done()
-        sensor = fields.sub("force_sensor", {})
+        sensor = fields.sub("force_sensor")
         force = ForceSensorSpec(
-            rate_hz=sensor.number("rate_hz", d.force_sensor.rate_hz, min=1.0, max=5000.0),
-            noise_n=sensor.number("noise_n", d.force_sensor.noise_n, min=0.0, max=10.0),
-            contact_threshold_n=sensor.number("contact_threshold_n",
-                                              d.force_sensor.contact_threshold_n,
-                                              min=1e-3, max=100.0),
-            position_noise_m=sensor.number("position_noise_m", d.force_sensor.position_noise_m,
-                                           min=0.0, max=0.05))
+            rate_hz=sensor.number("rate_hz", min=1.0, max=5000.0),
+            noise_n=sensor.number("noise_n", min=0.0, max=10.0),
+            contact_threshold_n=sensor.number("contact_threshold_n", min=1e-3, max=100.0),
+            position_noise_m=sensor.number("position_noise_m", min=0.0, max=0.05))
         sensor.done()
-        cam = fields.sub("camera", {})
+        cam = fields.sub("camera")
         camera = CameraSpec(
-            rate_hz=cam.number("rate_hz", d.camera.rate_hz, min=0.1, max=1000.0),
-            position_m=cam.vector("position_m", 3, d.camera.position_m, min=-10, max=10),
-            bias_m=cam.vector("bias_m", 2, d.camera.bias_m, min=-0.5, max=0.5),
-            bias_deg=cam.number("bias_deg", d.camera.bias_deg, min=-45, max=45),
-            noise_m=cam.number("noise_m", d.camera.noise_m, min=0.0, max=0.5),
-            noise_deg=cam.number("noise_deg", d.camera.noise_deg, min=0.0, max=45),
-            tag_size_m=cam.number("tag_size_m", d.camera.tag_size_m, min=0.0, max=0.5))
+            rate_hz=cam.number("rate_hz", min=0.1, max=1000.0),
+            position_m=cam.vector("position_m", 3, min=-10, max=10),
+            bias_m=cam.vector("bias_m", 2, min=-0.5, max=0.5),
+            bias_deg=cam.number("bias_deg", min=-45, max=45),
+            noise_m=cam.number("noise_m", min=0.0, max=0.5),
+            noise_deg=cam.number("noise_deg", min=0.0, max=45),
+            tag_size_m=cam.number("tag_size_m", min=0.0, max=0.5))
         cam.done()
         rig = PusherSliderRig(
-            pusher_diameter_m=fields.number("pusher_diameter_m", d.pusher_diameter_m,
-                                            min=1e-4, max=0.1),
-            pusher_length_m=fields.number("pusher_length_m", d.pusher_length_m,
-                                          min=0.02, max=1.0),
-            pusher_spacing_m=fields.number("pusher_spacing_m", d.pusher_spacing_m,
-                                           min=0.0, max=0.5),
-            pusher_clearance_m=fields.number("pusher_clearance_m", d.pusher_clearance_m,
-                                             min=0.0, max=0.01),
-            pusher_object_mu=fields.number("pusher_object_mu", d.pusher_object_mu,
-                                           min=0.0, max=2.0),
-            push_speed_m_per_s=fields.number("push_speed_m_per_s", d.push_speed_m_per_s,
-                                             min=1e-3, max=1.0),
-            transit_speed_m_per_s=fields.number("transit_speed_m_per_s",
-                                                d.transit_speed_m_per_s, min=1e-3, max=2.0),
-            surface=fields.string("surface", d.surface, choices=tuple(surfaces)),
+            pusher_diameter_m=fields.number("pusher_diameter_m", min=1e-4, max=0.1),
+            pusher_length_m=fields.number("pusher_length_m", min=0.02, max=1.0),
+            pusher_spacing_m=fields.number("pusher_spacing_m", min=0.0, max=0.5),
+            pusher_clearance_m=fields.number("pusher_clearance_m", min=0.0, max=0.01),
+            pusher_object_mu=fields.number("pusher_object_mu", min=0.0, max=2.0),
+            push_speed_m_per_s=fields.number("push_speed_m_per_s", min=1e-3, max=1.0),
+            transit_speed_m_per_s=fields.number("transit_speed_m_per_s", min=1e-3, max=2.0),
+            surface=fields.string("surface", choices=tuple(surfaces)),
             surfaces=surfaces,
             force_sensor=force,
             camera=camera,
-            carriage_size_m=fields.vector("carriage_size_m", 3, d.carriage_size_m,
-                                          min=0.0, max=1.0),
-            wrist_size_m=fields.vector("wrist_size_m", 3, d.wrist_size_m, min=0.0, max=2.0),
+            carriage_size_m=fields.vector("carriage_size_m", 3, min=0.0, max=1.0),
+            wrist_size_m=fields.vector("wrist_size_m", 3, min=0.0, max=2.0),
             source=str(path))
         fields.done()
         return rig

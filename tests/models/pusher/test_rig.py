@@ -14,7 +14,7 @@ from models.pusher.occlusion import (
     tag_visible,
 )
 from models.pusher.procedure import Stroke, random_procedure, standard_procedure, stroke_waypoints
-from models.pusher.rig import PusherSliderRig, mu_completing_pair, occluders
+from models.pusher.rig import DEFAULT_RIG, PusherSliderRig, mu_completing_pair, occluders
 
 RECT1 = ObjectSpec.load("rect1").footprint()
 
@@ -30,16 +30,53 @@ def test_rig_file_loads_with_the_papers_numbers():
 
 
 def test_rig_file_errors_name_the_field(tmp_path):
+    good = DEFAULT_RIG.read_text()
     bad = tmp_path / "rig.yaml"
-    bad.write_text("surfaces: {wood: 0.3}\nsurface: steel\n")
+    bad.write_text(good.replace("surface: plywood", "surface: steel"))
     with pytest.raises(ConfigError, match="field 'surface'"):
         PusherSliderRig.load(bad)
-    bad.write_text("surfaces: {wood: 0.3}\ncamera: {rate_hz: -1}\n")
+    bad.write_text(good.replace("rate_hz: 30 ", "rate_hz: -1 "))
     with pytest.raises(ConfigError, match="camera.rate_hz"):
         PusherSliderRig.load(bad)
-    bad.write_text("surfaces: {wood: 0.3}\npusher_diameter: 0.01\n")
+    bad.write_text(good.replace("pusher_diameter_m:", "pusher_diameter:"))
     with pytest.raises(ConfigError, match="pusher_diameter"):
         PusherSliderRig.load(bad)
+
+
+@pytest.mark.parametrize("line,field", [
+    ("pusher_diameter_m:", "pusher_diameter_m"),
+    ("pusher_spacing_m:", "pusher_spacing_m"),
+    ("pusher_object_mu:", "pusher_object_mu"),
+    ("push_speed_m_per_s:", "push_speed_m_per_s"),
+    ("surface: plywood", "surface"),
+    ("  noise_n:", "force_sensor.noise_n"),
+    ("  position_noise_m:", "force_sensor.position_noise_m"),
+    ("  position_m:", "camera.position_m"),
+    ("  noise_deg:", "camera.noise_deg"),
+    ("wrist_size_m:", "wrist_size_m"),
+])
+def test_rig_file_physical_fields_are_required(tmp_path, line, field):
+    """A rig file missing a number is an error, not the built-in rig's value."""
+    kept = [text for text in DEFAULT_RIG.read_text().splitlines()
+            if not text.startswith(line)]
+    bad = tmp_path / "rig.yaml"
+    bad.write_text("\n".join(kept) + "\n")
+    with pytest.raises(ConfigError, match=f"field '{field}': required field is missing") as err:
+        PusherSliderRig.load(bad)
+    assert str(bad) in str(err.value)
+
+
+def test_rig_file_without_a_sensor_section_is_an_error(tmp_path):
+    text = DEFAULT_RIG.read_text()
+    bad = tmp_path / "rig.yaml"
+    bad.write_text(text[:text.index("force_sensor:")] + text[text.index("camera:"):])
+    with pytest.raises(ConfigError, match="field 'force_sensor': required field is missing"):
+        PusherSliderRig.load(bad)
+
+
+def test_built_in_rig_file_matches_the_documented_defaults():
+    """The loader no longer falls back on the dataclass defaults; they stay the file's."""
+    assert PusherSliderRig.load() == PusherSliderRig(source=str(DEFAULT_RIG))
 
 
 @pytest.mark.parametrize("pair", [0.15, 0.25, 0.35, 0.45])
@@ -149,6 +186,49 @@ def test_malformed_logs_are_reported_with_file_and_line(tmp_path, synthetic_push
         PushLog.read(tmp_path / "time.csv")
     with pytest.raises(LogFormatError, match="no such log"):
         PushLog.read(tmp_path / "missing.csv")
+
+
+def test_bad_data_rows_are_reported_with_the_editors_line_number(tmp_path, synthetic_push_log):
+    """Line numbers are 1-based and count every line of the file, the header included."""
+    path = tmp_path / "log.csv"
+    synthetic_push_log.write(path)
+    lines = path.read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if line.startswith("t_s"))
+    k = header + 5  # the fifth data row: line k + 1 of the file
+    values = lines[k].split(",")
+
+    def read_with(row: str) -> str:
+        bad = tmp_path / "bad.csv"
+        bad.write_text("\n".join(lines[:k] + [row] + lines[k + 1:]) + "\n")
+        with pytest.raises(LogFormatError) as err:
+            PushLog.read(bad)
+        return str(err.value)
+
+    message = read_with(",".join(values[:3] + ["abc"] + values[4:]))
+    assert message.startswith(f"{tmp_path / 'bad.csv'}:{k + 1}: ")
+    assert "'abc'" in message and "rod0_fx_n" in message
+    message = read_with(",".join(values[:3] + ["1_0"] + values[4:]))  # float() would take it
+    assert message.startswith(f"{tmp_path / 'bad.csv'}:{k + 1}: column rod0_fx_n: '1_0'")
+    message = read_with(",".join(values[:-1]))
+    assert message.startswith(f"{tmp_path / 'bad.csv'}:{k + 1}: ")
+    assert f"{len(values) - 1} values" in message
+    message = read_with(",".join(["nan"] + values[1:]))
+    assert message.startswith(f"{tmp_path / 'bad.csv'}:{k + 1}: ")
+    message = read_with(",".join(["-1"] + values[1:]))  # time goes back at this row
+    assert message.startswith(f"{tmp_path / 'bad.csv'}:{k + 1}: column t_s must increase")
+    # Comment and blank lines between the rows count as lines (np.loadtxt skips them).
+    message = read_with("# a note\n\n" + ",".join(values[:3] + ["abc"] + values[4:]))
+    assert message.startswith(f"{tmp_path / 'bad.csv'}:{k + 3}: ")
+    message = read_with("# a note\n\n" + ",".join(["nan"] + values[1:]))
+    assert message.startswith(f"{tmp_path / 'bad.csv'}:{k + 3}: column t_s must be finite")
+
+
+def test_non_utf8_log_is_a_format_error(tmp_path, synthetic_push_log):
+    path = tmp_path / "log.csv"
+    synthetic_push_log.write(path)
+    path.write_bytes(path.read_bytes().replace(b"rect1", b"r\xe9ct1"))
+    with pytest.raises(LogFormatError, match=r"log.csv:2: not UTF-8 text"):
+        PushLog.read(path)
 
 
 def test_support_mesh_gives_a_contact_surface_of_many_polygons():
