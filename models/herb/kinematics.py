@@ -14,7 +14,11 @@ when (1)'s answer lacks clearance: pose plus clearance, from (1)'s answer, stayi
 Every answer is verified by forward kinematics and a distance query. A chain of nearby
 poses (a push, a lattice) warm-starts into a smooth joint path. A target that neither
 stage satisfies is reported as infeasible with the reason; it is never clipped to a
-nearby reachable pose.
+nearby reachable pose. The reason is ``unreachable`` when stage (1) finds no joint
+solution within the limits, and ``collision`` when the pose is reached only closer than
+``clearance_m`` to something: the message then names the robot link and geometry and what
+it hits (an obstacle by its scene name, the table, HERB's torso or another link), from
+Drake's signed-distance query at the pose-only solution.
 """
 
 from __future__ import annotations
@@ -35,6 +39,54 @@ from models.pose import wrap_angle
 
 POSITION_TOLERANCE_M = 1e-4
 ORIENTATION_TOLERANCE_RAD = 1e-3
+#: How much a clearance-constrained answer may fall short of ``clearance_m`` (m).
+CLEARANCE_SLACK_M = 1e-4
+
+
+def format_mm(value_m: float, reference_m: float) -> str:
+    """``value_m`` in millimetres, with 2 decimals or as many more (up to 6) as it takes to
+    differ from ``reference_m`` printed the same way (so that 4.9996 mm never prints as the
+    5.00 mm it falls short of)."""
+    for digits in range(2, 7):
+        text = f"{value_m * 1e3:.{digits}f}"
+        if text != f"{reference_m * 1e3:.{digits}f}":
+            return text
+    return text
+
+
+@dataclass(frozen=True)
+class ClosePair:
+    """A robot geometry and another geometry closer than the clearance.
+
+    Attributes:
+        distance_m: signed distance (m) between them; negative when they penetrate.
+        robot_link: the robot's body (e.g. ``"bh_base"``, ``"wam6"``).
+        robot_geometry: its collision geometry (e.g. ``"palm_pad"``).
+        other: the other body: an obstacle's name in the scene, ``"table"``,
+            ``"herb_torso"``, or another robot link (self-collision).
+        other_geometry: the other body's collision geometry.
+        other_kind: ``"obstacle"``, ``"robot link"`` or ``"environment body"``.
+    """
+
+    distance_m: float
+    robot_link: str
+    robot_geometry: str
+    other: str
+    other_geometry: str
+    other_kind: str
+
+    def describe(self, clearance_m: float) -> str:
+        """E.g. ``robot link 'bh_base' (geometry 'palm_pad') penetrates obstacle
+        'cracker_box' by 58.92 mm`` or ``robot link 'wam6' (geometry 'wam6_collision_0') is
+        4.87 mm from environment body 'table' (geometry 'table_top')``; distances in mm
+        with enough digits to differ from ``clearance_m`` (see :func:`format_mm`)."""
+        robot = f"robot link '{self.robot_link}' (geometry '{self.robot_geometry}')"
+        other = f"{self.other_kind} '{self.other}'"
+        if self.other_geometry != self.other:
+            other += f" (geometry '{self.other_geometry}')"
+        if self.distance_m < 0:
+            return f"{robot} penetrates {other} by {format_mm(-self.distance_m, 0.0)} mm"
+        return f"{robot} is {format_mm(self.distance_m, clearance_m)} mm from {other}"
 
 
 @dataclass(frozen=True)
@@ -45,15 +97,20 @@ class IKResult:
         feasible: whether ``q`` reaches the pose within tolerance, inside the joint
             limits, with the required clearance.
         q: (7,) arm joint angles (rad); the last attempt's answer when infeasible.
-        reason: empty when feasible; otherwise why not (unreachable, collision, ...).
+        reason: empty when feasible; otherwise why not, starting with ``unreachable``
+            (no joint solution within the limits reaches the pose) or ``collision`` (the
+            pose is reached only closer than the clearance to something; names what).
         min_distance_m: smallest signed distance between robot and environment/self at
             ``q`` (m), over pairs closer than 0.1 m (0.1 when none is that close).
+        blocking: for a collision, the pairs closer than the clearance at the solution
+            that reaches the pose, closest (deepest) first; empty otherwise.
     """
 
     feasible: bool
     q: np.ndarray
     reason: str = ""
     min_distance_m: float = 0.1
+    blocking: tuple[ClosePair, ...] = ()
 
 
 class PlanarHandIK:
@@ -116,27 +173,76 @@ class PlanarHandIK:
             seed: (7,) initial guess; the solution minimises the distance to it.
         """
         seed = np.clip(np.asarray(seed, dtype=float), self.lower, self.upper)
-        ok, q = self._solve_once(pose, seed, with_clearance=False)
-        if not (ok or self._reaches(q, pose)):
-            return IKResult(False, q, "unreachable: no joint solution within limits near "
-                                      "the seed reaches the pose")
-        min_distance = self.min_distance(q)
+        ok, q_pose = self._solve_once(pose, seed, with_clearance=False)
+        if not (ok or self._reaches(q_pose, pose)):
+            return IKResult(False, q_pose, "unreachable: no joint solution within limits near "
+                                           "the seed reaches the pose")
+        min_distance = self.min_distance(q_pose)
         if min_distance >= self.clearance_m:
-            return IKResult(True, q, "", min_distance)
-        ok, q = self._solve_once(pose, q, with_clearance=True)
+            return IKResult(True, q_pose, "", min_distance)
+        ok, q = self._solve_once(pose, q_pose, with_clearance=True)
         min_distance = self.min_distance(q)
-        if self._reaches(q, pose) and min_distance >= self.clearance_m - 1e-4:
+        if self._reaches(q, pose) and min_distance >= self.clearance_m - CLEARANCE_SLACK_M:
             return IKResult(True, q, "", min_distance)
-        return IKResult(False, q, f"collision: no solution keeps {self.clearance_m} m "
-                                  f"clearance (closest {min_distance:.4f} m)", min_distance)
+        reason, blocking = self._collision_reason(pose, q_pose, q, min_distance)
+        return IKResult(False, q, reason, min_distance, blocking)
+
+    def _collision_reason(self, pose: np.ndarray, q_pose: np.ndarray, q: np.ndarray,
+                          min_distance: float) -> tuple[str, tuple[ClosePair, ...]]:
+        """Why the clearance-keeping answer ``q`` failed, naming what blocks the pose.
+
+        Args:
+            pose: (3,) the target planar pose.
+            q_pose: (7,) stage (1)'s answer: reaches the pose, closer than the clearance.
+            q: (7,) stage (2)'s answer (clearance constrained), with ``min_distance`` (m).
+        """
+        clearance = self.clearance_m
+        reached = self._reaches(q, pose)
+        if reached:  # the pose, but short of the clearance: what is too close at q
+            blocking = self.close_pairs(q, clearance - CLEARANCE_SLACK_M)
+        else:  # the clearance, but not the pose: what is in the way at the pose
+            blocking = self.close_pairs(q_pose, clearance)
+        if not blocking:  # only pairs without a robot geometry (not expected)
+            return (f"collision: geometry {format_mm(min_distance, clearance)} mm apart, inside "
+                    f"the {format_mm(clearance, min_distance)} mm clearance"), ()
+        first = blocking[0]
+        reason = (f"collision: at the pose, {first.describe(clearance)}, inside the "
+                  f"{format_mm(clearance, first.distance_m)} mm clearance")
+        others = list(dict.fromkeys(f"{p.other_kind} '{p.other}'" for p in blocking[1:]
+                                    if (p.other_kind, p.other) != (first.other_kind,
+                                                                   first.other)))
+        if others:
+            reason += f" (also inside it: {', '.join(others)})"
+        if reached:
+            return reason + "; no solution found keeps the clearance there", blocking
+        position_error, heading_error = self._pose_error(q, pose)
+        misses = []
+        if (position_error > 2 * POSITION_TOLERANCE_M
+                or heading_error > 2 * ORIENTATION_TOLERANCE_RAD):
+            misses.append(f"misses the pose by {position_error * 1e3:.2f} mm and "
+                          f"{np.rad2deg(heading_error):.2f} deg")
+        if not self._within_limits(q):
+            misses.append("leaves the joint limits")
+        if min_distance < 0:
+            misses.append(f"still penetrates by {format_mm(-min_distance, 0.0)} mm")
+        elif min_distance < clearance - CLEARANCE_SLACK_M:
+            misses.append(f"keeps only {format_mm(min_distance, clearance)} mm")
+        return reason + "; the best clearance-keeping solution " + " and ".join(misses), blocking
+
+    def _within_limits(self, q_arm: np.ndarray) -> bool:
+        return not (np.any(q_arm < self.lower - 1e-9) or np.any(q_arm > self.upper + 1e-9))
+
+    def _pose_error(self, q_arm: np.ndarray, pose: np.ndarray) -> tuple[float, float]:
+        """Palm position error (m) and heading error (rad) of ``q_arm`` from ``pose``."""
+        x, y, theta, z = self.palm_pose(q_arm)
+        position_error = np.linalg.norm([x - pose[0], y - pose[1], z - self.world.palm_height_m])
+        return float(position_error), abs(float(wrap_angle(theta - pose[2])))
 
     def _reaches(self, q_arm: np.ndarray, pose: np.ndarray) -> bool:
         """Does ``q_arm`` lie within the joint limits and put the palm at ``pose``?"""
-        if np.any(q_arm < self.lower - 1e-9) or np.any(q_arm > self.upper + 1e-9):
+        if not self._within_limits(q_arm):
             return False
-        x, y, theta, z = self.palm_pose(q_arm)
-        position_error = np.linalg.norm([x - pose[0], y - pose[1], z - self.world.palm_height_m])
-        heading_error = abs(float(wrap_angle(theta - pose[2])))
+        position_error, heading_error = self._pose_error(q_arm, pose)
         return (position_error <= 2 * POSITION_TOLERANCE_M
                 and heading_error <= 2 * ORIENTATION_TOLERANCE_RAD)
 
@@ -144,19 +250,25 @@ class PlanarHandIK:
         self, pose: np.ndarray, *, rng: np.random.Generator, attempts: int = 30
     ) -> IKResult:
         """Solve from HERB's home and from random seeds; return the feasible solution
-        closest to home (used once per episode, for the first pose)."""
+        closest to home (used once per episode, for the first pose).
+
+        When no seed succeeds, the last collision failure is returned if any seed reached
+        the pose (a blocked pose is not unreachable), else the last failure.
+        """
         best: IKResult | None = None
-        last = None
+        last = collision = None
         for k in range(attempts):
             seed = self.home if k == 0 else rng.uniform(self.lower, self.upper)
             result = self.solve(pose, seed)
             last = result
+            if not result.feasible and result.reason.startswith("collision"):
+                collision = result
             if result.feasible and (best is None or np.sum((result.q - self.home) ** 2)
                                     < np.sum((best.q - self.home) ** 2)):
                 best = result
             if best is not None and k >= 4:
                 break
-        return best if best is not None else last
+        return best if best is not None else (collision or last)
 
     def min_distance(self, q_arm: np.ndarray, influence_m: float = 0.1) -> float:
         """Smallest signed distance (m) among unfiltered geometry pairs at ``q_arm``."""
@@ -164,6 +276,35 @@ class PlanarHandIK:
         query = self.plant.get_geometry_query_input_port().Eval(self._plant_context)
         pairs = query.ComputeSignedDistancePairwiseClosestPoints(influence_m)
         return min((p.distance for p in pairs), default=influence_m)
+
+    def close_pairs(self, q_arm: np.ndarray, within_m: float) -> tuple[ClosePair, ...]:
+        """The unfiltered pairs of a robot geometry and any other geometry closer than
+        ``within_m`` (m) at ``q_arm`` (7,), closest (deepest) first, from Drake's
+        signed-distance query."""
+        self.plant.SetPositions(self._plant_context, self.full_positions(q_arm))
+        query = self.plant.get_geometry_query_input_port().Eval(self._plant_context)
+        inspector = query.inspector()
+        robot = {self.world.wam, self.world.hand.instance}
+        obstacles = {o.spec.name for o in self.world.scene.obstacles}
+
+        def side(geometry_id):
+            body = self.plant.GetBodyFromFrameId(inspector.GetFrameId(geometry_id))
+            return (body.model_instance() in robot, body.name(),
+                    inspector.GetName(geometry_id).split("::")[-1])
+
+        pairs = []
+        for p in query.ComputeSignedDistancePairwiseClosestPoints(within_m):
+            if not p.distance < within_m:
+                continue
+            a, b = side(p.id_A), side(p.id_B)
+            if not a[0]:
+                a, b = b, a
+            if not a[0]:
+                continue  # two environment geometries: not the robot's clearance
+            kind = ("robot link" if b[0] else "obstacle" if b[1] in obstacles
+                    else "environment body")
+            pairs.append(ClosePair(float(p.distance), a[1], a[2], b[1], b[2], kind))
+        return tuple(sorted(pairs, key=lambda pair: pair.distance_m))
 
     def _solve_once(self, pose, seed, *, with_clearance: bool):
         plant = self.plant
