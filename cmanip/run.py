@@ -1,101 +1,142 @@
-"""``cmanip run`` (one closed-loop episode) and ``cmanip experiment closedloop``."""
+"""``cmanip run``: one closed-loop episode, HERB pushing an object into the goal by touch in
+one Drake diagram; and the options it shares with ``cmanip experiment closedloop``."""
 
 from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
-DEFAULT_CACHE = Path("out/cache")
+from cmanip.config import RunConfig, load_config, with_object, write_config
+from cmanip.options import setting_option, subcommand, wait_for_meshcat
+from diagrams.herb.settings import (
+    ESTIMATORS,
+    PLANNER_BELIEFS,
+    POLICIES,
+    THESIS_BELIEF_MEANS,
+    EpisodeSettings,
+)
+from planning.hand.solution import HandSolveSettings
+
+EPISODE = EpisodeSettings()
+SOLVER = RunConfig().solver
 
 
-def add_commands(commands, studies) -> None:
-    run = commands.add_parser("run", help="one closed-loop episode: HERB pushes by touch")
-    run.add_argument("--scene", default="closed_loop", help="scene name or path")
-    run.add_argument("--object", default="bottle",
-                     help="object name or path (the thesis' real-robot trials: a bottle)")
-    run.add_argument("--policy", choices=("qmdp", "pomdp"), default="pomdp")
-    run.add_argument("--estimator", choices=("mpf", "cpf"), default="mpf")
-    run.add_argument("--belief", type=int, choices=(1, 2, 3), default=2,
-                     help="initial belief of thesis sec. 6.5 (means 35 cm ahead at lateral "
-                          "offsets -12, 0, +6 cm)")
-    run.add_argument("--on-infeasible", choices=("stop", "next"), default="stop")
-    _common(run)
-    run.add_argument("--out", type=Path, required=True)
-    run.add_argument("--meshcat", action="store_true",
-                     help="serve Meshcat live on localhost (prints the URL) and wait at the end")
-
-    study = studies.add_parser("closedloop", help="closed-loop episodes from the thesis' three "
-                                                  "initial beliefs, in Drake (sec. 6.5)")
-    study.add_argument("--policy", choices=("qmdp", "pomdp", "both"), default="both")
-    study.add_argument("--trials", type=int, default=30,
-                       help="episodes per policy, spread over the three beliefs")
-    study.add_argument("--object", default="bottle", help="object name or path")
-    study.add_argument("--estimator", choices=("mpf", "cpf"), default="mpf")
-    study.add_argument("--on-infeasible", choices=("stop", "next"), default="stop")
-    _common(study)
-    study.add_argument("--out", type=Path, required=True)
-
-
-def _common(parser) -> None:
-    parser.add_argument("--planner-belief", choices=("estimator", "thesis"), default="estimator",
-                        help="the policy acts on the estimator's belief, or on its own filters "
-                             "as in the thesis (sec. 6.4.1)")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--horizon", type=int, default=30, help="decisions per episode")
-    parser.add_argument("--particles", type=int, default=500)
-    parser.add_argument("--solve-seconds", type=float, default=600.0,
-                        help="point-based solver wall-time cap (s) when the policy is not "
-                             "cached")
-    parser.add_argument("--solve-trials", type=int, default=400,
-                        help="stop the solver after this many search trials (about 60 s for "
-                             "the bottle; a trial budget makes the policy machine-independent; "
-                             "0: no trial budget)")
-    parser.add_argument("--plan-seconds", type=float, default=20.0,
-                        help="pre-contact search time limit (s; thesis: 20)")
-    parser.add_argument("--cache", type=Path, default=DEFAULT_CACHE,
-                        help="where solved planning models are kept")
-    parser.add_argument("--no-progress", action="store_true")
+def add_episode_options(parser, *, policy: bool) -> None:
+    """The episode options of ``run`` and ``experiment closedloop`` (each overrides the
+    configuration's value only when given)."""
+    parser.add_argument("--config", type=Path, default=None,
+                        help="a YAML configuration (e.g. a run's DIR/config.yaml); the "
+                             "options below override it")
+    setting_option(parser, "--scene", EPISODE.scene, "scene name or path")
+    setting_option(parser, "--object", EPISODE.object_name,
+                   "object name or path, pushed and planned for (the thesis' real-robot "
+                   "trials: a bottle)")
+    if policy:
+        setting_option(parser, "--policy", EPISODE.policy, "post-contact policy",
+                       choices=POLICIES)
+    setting_option(parser, "--estimator", EPISODE.estimator,
+                   "the estimator's filter: manifold (MPF) or conventional (CPF)",
+                   choices=ESTIMATORS)
+    setting_option(parser, "--planner-belief", EPISODE.planner_belief,
+                   "the policy acts on the estimator's belief, or on its own filters as in "
+                   "the thesis (sec. 6.4.1)", choices=PLANNER_BELIEFS)
+    setting_option(parser, "--on-infeasible", EPISODE.on_infeasible,
+                   "when the policy's action is infeasible: end the episode (the thesis' "
+                   "rule) or take the next-ranked feasible action", choices=("stop", "next"))
+    setting_option(parser, "--horizon", EPISODE.horizon, "decisions per episode", type=int)
+    setting_option(parser, "--particles", EPISODE.particles, "estimator particles", type=int)
+    setting_option(parser, "--plan-seconds", EPISODE.precontact.time_limit_s,
+                   "pre-contact search time limit (s; thesis: 20)", type=float)
+    setting_option(parser, "--solve-seconds", SOLVER.solve_seconds,
+                   "point-based solver wall-time cap (s) when the policy is not cached",
+                   type=float)
+    setting_option(parser, "--solve-trials", SOLVER.solve_trials,
+                   "stop the solver after this many search trials (a trial budget makes "
+                   "the policy machine-independent; 0: the time cap alone)", type=int)
+    setting_option(parser, "--cache", RunConfig().cache_dir,
+                   "where solved planning models are kept")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
-def run(args: argparse.Namespace) -> int | None:
-    """Handle the commands of this module; ``None`` when ``args`` is another command's."""
-    if args.command == "run":
-        return _run(args)
-    if args.command == "experiment" and args.study == "closedloop":
-        return _study(args)
-    return None
+def override_episode(episode: EpisodeSettings, args: argparse.Namespace) -> EpisodeSettings:
+    """``episode`` with the episode options given on the command line."""
+    given = vars(args)
+    names = {"scene": "scene", "object": "object_name", "policy": "policy",
+             "estimator": "estimator", "planner_belief": "planner_belief",
+             "on_infeasible": "on_infeasible", "horizon": "horizon", "particles": "particles"}
+    episode = replace(episode, **{field: given[option] for option, field in names.items()
+                                  if option in given})
+    if "plan_seconds" in given:
+        episode = replace(episode, precontact=replace(episode.precontact,
+                                                      time_limit_s=given["plan_seconds"]))
+    return episode
 
 
-def _solution(args, object_name: str):
-    from planning.hand.solution import HandSolveSettings, solve_hand_problem
+def override_solver(solver: HandSolveSettings, args: argparse.Namespace) -> HandSolveSettings:
+    """``solver`` with the solver options given on the command line."""
+    given = vars(args)
+    if "object" in given:
+        solver = with_object(solver, given["object"])
+    if "solve_seconds" in given:
+        solver = replace(solver, solve_seconds=given["solve_seconds"])
+    if "solve_trials" in given:
+        solver = replace(solver, solve_trials=given["solve_trials"] or None)
+    return solver
 
-    settings = HandSolveSettings(object_name=object_name, solve_seconds=args.solve_seconds,
-                                 solve_trials=args.solve_trials or None)
-    solution = solve_hand_problem(settings, cache_dir=args.cache,
-                                  progress=not args.no_progress)
+
+def solve(solver: HandSolveSettings, cache_dir: str, *, progress: bool):
+    """The solved planning model (from the cache when it holds it)."""
+    from planning.hand.solution import solve_hand_problem
+
+    solution = solve_hand_problem(solver, cache_dir=Path(cache_dir), progress=progress)
     origin = "loaded from" if solution.loaded_from_cache else "solved and saved in"
-    print(f"planning model ({len(solution.model.pomdp.states)} states) {origin} {args.cache}",
+    print(f"planning model ({len(solution.model.pomdp.states)} states) {origin} {cache_dir}",
           flush=True)
     return solution
 
 
-def _run(args) -> int:
-    from pydrake.geometry import Meshcat
+def register(commands) -> None:
+    run = subcommand(commands, "run", "one closed-loop episode: HERB pushes an object into "
+                                      "the goal by touch, in one Drake diagram")
+    add_episode_options(run, policy=True)
+    setting_option(run, "--belief", THESIS_BELIEF_MEANS.index(EPISODE.belief_mean) + 1,
+                   "initial belief of thesis sec. 6.5 (means 35 cm ahead at lateral offsets "
+                   "-12, 0, +6 cm; 2 is the centre)", type=int, choices=(1, 2, 3))
+    setting_option(run, "--seed", EPISODE.seed, "seeds the true pose, particles, sensors, "
+                                                "filter and planner", type=int)
+    run.add_argument("--out", type=Path, required=True,
+                     help="output directory (summary.json, belief.png, replay.html, "
+                          "trace.npz, config.yaml)")
+    run.add_argument("--meshcat", action="store_true",
+                     help="serve Meshcat live on localhost (prints the URL) and, when run "
+                          "from a terminal, wait for Enter at the end")
+    run.set_defaults(handler=_run)
 
+
+def resolve_run(args: argparse.Namespace) -> RunConfig:
+    """The run's configuration: ``--config`` (or the defaults), then the options given."""
+    config = load_config(RunConfig, args.config)
+    episode = override_episode(config.episode, args)
+    given = vars(args)
+    if "belief" in given:
+        episode = replace(episode, belief_mean=THESIS_BELIEF_MEANS[given["belief"] - 1])
+    if "seed" in given:
+        episode = replace(episode, seed=given["seed"])
+    return RunConfig(episode, override_solver(config.solver, args),
+                     given.get("cache", config.cache_dir))
+
+
+def _run(args) -> int:
     from diagrams.herb.episode import InfeasibleStart, run_episode
     from diagrams.herb.report import write_episode
-    from diagrams.herb.settings import THESIS_BELIEF_MEANS, EpisodeSettings
-    from planning.hand.precontact import PreContactSettings
+    from diagrams.meshcat import local_meshcat
 
-    settings = EpisodeSettings(
-        scene=args.scene, object_name=args.object, policy=args.policy,
-        estimator=args.estimator, planner_belief=args.planner_belief,
-        belief_mean=THESIS_BELIEF_MEANS[args.belief - 1],
-        particles=args.particles, horizon=args.horizon, on_infeasible=args.on_infeasible,
-        precontact=PreContactSettings(time_limit_s=args.plan_seconds), seed=args.seed)
-    solution = _solution(args, args.object)
-    meshcat = Meshcat()
+    config = resolve_run(args)
+    settings = config.episode
+    solution = solve(config.solver, config.cache_dir, progress=not args.no_progress)
+    meshcat = local_meshcat()
     if args.meshcat:
         print(f"Meshcat is live at {meshcat.web_url()}", flush=True)
     try:
@@ -105,42 +146,22 @@ def _run(args) -> int:
         print(f"cmanip: infeasible start: {err}", file=sys.stderr)
         return 3
     write_episode(episode, args.out)
+    write_config(config, args.out)
     s = episode.summary
     outcome = "SUCCESS: the object is in the goal" if s["success"] else \
         f"FAILURE: the object is {100 * s['final_distance_to_goal_m']:.1f} cm from the goal"
     stop = s["stop_reason"]
     if stop == "no_feasible_action":
         stop = f"the next action is infeasible: {s['rejections'][-1]['reason']}"
-    print(f"{args.policy}/{args.estimator}, belief {args.belief}, seed {args.seed}: {outcome} "
-          f"after {s['steps']} steps (stopped: {stop}); estimator RMSE mean "
+    belief = (f"belief {THESIS_BELIEF_MEANS.index(settings.belief_mean) + 1}"
+              if settings.belief_mean in THESIS_BELIEF_MEANS else
+              f"belief mean {list(settings.belief_mean)}")
+    print(f"{settings.policy}/{settings.estimator}, {belief}, seed {settings.seed}: "
+          f"{outcome} after {s['steps']} steps (stopped: {stop}); estimator RMSE mean "
           f"{100 * s['estimator_rmse_m']['mean']:.1f} cm; planning median "
           f"{s['planning_ms_median']:.1f} ms; {s['sim_time_s']:.1f} s simulated in "
           f"{s['wall_time_s']:.1f} s")
-    print(f"wrote {args.out}/replay.html, summary.json, belief.png")
+    print(f"wrote {args.out}/replay.html, summary.json, belief.png, config.yaml")
     if args.meshcat:
-        input("Meshcat stays up until you press Enter... ")
-    return 0
-
-
-def _study(args) -> int:
-    from experiments.closedloop_study import ClosedLoopSettings, run_closedloop_study
-
-    if args.trials < 1:
-        raise ValueError(f"--trials must be >= 1, got {args.trials}")
-    policies = ("qmdp", "pomdp") if args.policy == "both" else (args.policy,)
-    settings = ClosedLoopSettings(
-        policies=policies, trials=args.trials, seed=args.seed, estimator=args.estimator,
-        planner_belief=args.planner_belief, object_name=args.object,
-        horizon=args.horizon, particles=args.particles, on_infeasible=args.on_infeasible,
-        plan_seconds=args.plan_seconds)
-    solution = _solution(args, args.object)
-    summary = run_closedloop_study(settings, solution, args.out,
-                                   progress=not args.no_progress)
-    for name, result in summary["policies"].items():
-        lo, hi = result["success_rate_ci95"]
-        print(f"{name}: success {result['successes']}/{result['trials']} "
-              f"({100 * result['success_rate']:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}]); "
-              f"infeasible actions executed {result['infeasible_actions']}; planning median "
-              f"{result['planning_ms_median']:.1f} ms")
-    print(f"wrote {args.out}/summary.json, closedloop.png")
+        wait_for_meshcat(meshcat.web_url())
     return 0

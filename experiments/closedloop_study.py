@@ -14,7 +14,7 @@ policy ``success_rate`` with its 95 % Wilson interval, ``infeasible_actions`` ex
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -22,9 +22,9 @@ from tqdm import tqdm
 
 from diagrams.herb.closed_loop import estimator_filter
 from diagrams.herb.episode import run_episode
-from diagrams.herb.settings import THESIS_BELIEF_MEANS, EpisodeSettings
+from diagrams.herb.settings import POLICIES, THESIS_BELIEF_MEANS, EpisodeSettings
 from experiments.statistics import wilson_interval
-from planning.hand.precontact import PreContactSettings
+from models.settings import settings_to_dict
 from planning.hand.solution import HandSolution
 
 THESIS_REAL_ROBOT = {"pomdp": {"successes": 27, "trials": 30},
@@ -35,49 +35,45 @@ THESIS_REAL_ROBOT = {"pomdp": {"successes": 27, "trials": 30},
 class ClosedLoopSettings:
     """Attributes:
         policies: which post-contact policies to run.
-        object_name: the pushed object (the thesis' real-robot trials: a bottle).
         trials: episodes per policy.
-        seed: master seed.
-        estimator, planner_belief, horizon, particles, on_infeasible: as
-            :class:`~diagrams.herb.settings.EpisodeSettings`.
-        plan_seconds: the pre-contact search's time limit (s).
-        beliefs: the initial belief means (hand frame).
+        seed: master seed (episode ``j`` is seeded from ``(seed, j)``).
+        beliefs: the initial belief means (hand frame: x m, y m, theta rad); episode ``j``
+            starts from belief ``j mod len(beliefs)``.
+        episode: every other setting of an episode (its policy, belief mean and seed are
+            the study's).
     """
 
     policies: tuple[str, ...] = ("qmdp", "pomdp")
-    object_name: str = "bottle"
     trials: int = 30
     seed: int = 0
-    estimator: str = "mpf"
-    planner_belief: str = "estimator"
-    horizon: int = 30
-    particles: int = 500
-    on_infeasible: str = "stop"
-    plan_seconds: float = 20.0
-    beliefs: tuple[tuple[float, float, float], ...] = field(
-        default_factory=lambda: THESIS_BELIEF_MEANS)
+    beliefs: tuple[tuple[float, float, float], ...] = THESIS_BELIEF_MEANS
+    episode: EpisodeSettings = EpisodeSettings()
 
-    def episode(self, policy: str, trial: int) -> EpisodeSettings:
-        return EpisodeSettings(
-            policy=policy, object_name=self.object_name, estimator=self.estimator,
-            planner_belief=self.planner_belief,
-            belief_mean=self.beliefs[trial % len(self.beliefs)], particles=self.particles,
-            horizon=self.horizon, on_infeasible=self.on_infeasible,
-            precontact=PreContactSettings(time_limit_s=self.plan_seconds),
-            seed=int(np.random.SeedSequence([self.seed, trial]).generate_state(1)[0]))
+    def __post_init__(self):
+        if self.trials < 1:
+            raise ValueError(f"trials must be >= 1, got {self.trials}")
+        unknown = set(self.policies) - set(POLICIES)
+        if unknown:
+            raise ValueError(f"policies must be drawn from {POLICIES}, got {self.policies}")
+
+    def episode_settings(self, policy: str, trial: int) -> EpisodeSettings:
+        """The settings of episode ``trial`` of ``policy``."""
+        return replace(self.episode, policy=policy,
+                       belief_mean=self.beliefs[trial % len(self.beliefs)],
+                       seed=int(np.random.SeedSequence([self.seed, trial]).generate_state(1)[0]))
 
 
 def run_closedloop_study(settings: ClosedLoopSettings, solution: HandSolution, out: Path, *,
                          progress: bool = True) -> dict:
     """Run every (policy, trial) episode; write and return the summary."""
     out.mkdir(parents=True, exist_ok=True)
-    shared = estimator_filter(settings.estimator, solution.model.world)
+    shared = estimator_filter(settings.episode.estimator, solution.model.world)
     results: dict[str, dict] = {}
     for policy in settings.policies:
         trials = []
         for j in tqdm(range(settings.trials), desc=f"closed loop ({policy})", unit="episode",
                       disable=not progress):
-            episode = run_episode(settings.episode(policy, j), solution, progress=False,
+            episode = run_episode(settings.episode_settings(policy, j), solution, progress=False,
                                   filter=shared)
             summary = episode.summary
             summary["trial"] = j
@@ -85,7 +81,7 @@ def run_closedloop_study(settings: ClosedLoopSettings, solution: HandSolution, o
             trials.append(summary)
         results[policy] = _aggregate(trials)
     summary = {"policies": results, "thesis_real_robot": THESIS_REAL_ROBOT,
-               "settings": asdict(settings), "model_timings_s": solution.timings}
+               "settings": settings_to_dict(settings), "model_timings_s": solution.timings}
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     from experiments.closedloop_plots import plot_closedloop
 

@@ -46,6 +46,7 @@ from planning.hand.policy import HandPolicy, qmdp_vectors
 from planning.hand.precontact import PreContactPlan, PreContactPlanner, PreContactSettings
 from planning.pomdp.cassandra import write_pomdp
 from planning.pomdp.point_based import AlphaVectorPolicy, PointBasedSolver
+from planning.pomdp.progress import SolverProgressBar
 from planning.pomdp.qmdp import solve_mdp
 from planning.pomdp.tabular import simulate_returns
 
@@ -120,16 +121,10 @@ def solve_problem(settings: HandplanSettings, sensors: str,
     qmdp_s = time.perf_counter() - start
     initial = discretise(model, beliefs, settings)
     solver = PointBasedSolver(model.pomdp)
-    bar = tqdm(total=int(settings.solve_seconds), desc=f"point-based solver ({sensors})",
-               unit="s")
-
-    def show(elapsed, lower, upper):
-        if int(elapsed) > bar.n:
-            bar.update(min(int(elapsed), bar.total) - bar.n)
-            bar.set_postfix(lower=f"{lower:.3f}", upper=f"{upper:.3f}")
-
+    bar = SolverProgressBar(settings.solve_seconds, settings.solve_trials,
+                            desc=f"point-based solver ({sensors})")
     start = time.perf_counter()
-    pomdp_policy = solver.solve(settings.solve_seconds, initial_beliefs=initial, callback=show,
+    pomdp_policy = solver.solve(settings.solve_seconds, initial_beliefs=initial, callback=bar,
                                 max_trials=settings.solve_trials)
     bar.close()
     solve_s = time.perf_counter() - start

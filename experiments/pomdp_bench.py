@@ -53,7 +53,7 @@ def run_pomdp_bench(*, quick: bool = False, episodes: int = 200, horizon: int = 
 
         shown = [-np.inf]
 
-        def show(elapsed, lower, upper, name=name, shown=shown):
+        def show(elapsed, lower, upper, trials, name=name, shown=shown):
             if elapsed - shown[0] >= 10.0:
                 shown[0] = elapsed
                 print(f"  {name:15s} {elapsed:7.1f} s  lower {lower:9.3f}  upper {upper:9.3f}",

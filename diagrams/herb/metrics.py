@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict
-
 import numpy as np
 
 from diagrams.herb.controller import Decision
 from diagrams.herb.settings import EpisodeSettings
+from models.settings import settings_to_dict
 from planning.hand.solution import HandSolution
 
 
@@ -43,8 +42,6 @@ def summarise_episode(settings: EpisodeSettings, solution: HandSolution,
     planning_ms = [d.planning_ms for d in decisions]
     names = solution.model.pomdp.actions
     sim_s = float(trace["time_s"][-1])
-    settings_dict = asdict(settings)
-    settings_dict["precontact"] = asdict(settings.precontact)
     return {
         "success": bool(in_goal[-1]),
         "stop_reason": stop,
@@ -77,5 +74,5 @@ def summarise_episode(settings: EpisodeSettings, solution: HandSolution,
         "wall_time_s": wall_s,
         "real_time_factor": sim_s / wall_s,
         "goal_region_hand_m": goal.tolist(),
-        "settings": settings_dict,
+        "settings": settings_to_dict(settings),
     }

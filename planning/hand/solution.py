@@ -27,6 +27,7 @@ from planning.hand.discretization import HandDiscretization, HandProblemSpec
 from planning.hand.model import HandPOMDP, build_hand_pomdp
 from planning.hand.policy import qmdp_vectors
 from planning.pomdp.point_based import AlphaVectorPolicy, PointBasedSolver
+from planning.pomdp.progress import SolverProgressBar
 from planning.pomdp.qmdp import solve_mdp
 
 CACHE_VERSION = 2  # 2: the point-based solver samples by SARSOP's rule
@@ -97,9 +98,11 @@ def solve_hand_problem(settings: HandSolveSettings = HandSolveSettings(), *,
                                               rng=np.random.default_rng([settings.seed, 3, i])))
                         for i, b in enumerate(points)])
     start = time.perf_counter()
+    bar = SolverProgressBar(settings.solve_seconds, settings.solve_trials, disable=not progress)
     pomdp = PointBasedSolver(model.pomdp).solve(
         settings.solve_seconds, initial_beliefs=initial, max_trials=settings.solve_trials,
-        callback=_progress_bar(settings.solve_seconds) if progress else None)
+        callback=bar)
+    bar.close()
     timings = {"build_s": model.build_seconds, "qmdp_solve_s": qmdp_s,
                "pomdp_solve_s": time.perf_counter() - start}
     solution = HandSolution(model, {"qmdp": qmdp, "pomdp": pomdp}, timings)
@@ -122,18 +125,3 @@ def _load(path: Path, world: PlanarWorld, spec: HandProblemSpec) -> HandSolution
     policies = {k: AlphaVectorPolicy(alphas, actions, pomdp.actions)
                 for k, (alphas, actions) in payload["vectors"].items()}
     return HandSolution(model, policies, payload["timings"], loaded_from_cache=True)
-
-
-def _progress_bar(seconds: float):
-    from tqdm import tqdm
-
-    bar = tqdm(total=int(np.ceil(seconds)), desc="point-based solver", unit="s")
-
-    def show(elapsed, lower, upper):
-        if int(elapsed) > bar.n:
-            bar.update(min(int(elapsed), bar.total) - bar.n)
-            bar.set_postfix(lower=f"{lower:.3f}", upper=f"{upper:.3f}")
-        if elapsed >= seconds:
-            bar.close()
-
-    return show

@@ -435,7 +435,8 @@ class PointBasedSolver:
         Args:
             seconds: wall-time budget (s).
             report_every: how often (s) the bounds are recorded in :attr:`report`.
-            callback: ``callback(elapsed, lower, upper)``, called at every record.
+            callback: ``callback(elapsed, lower, upper, trials)``, called at every record
+                (e.g. :class:`~planning.pomdp.progress.SolverProgressBar`).
             initial_beliefs: (K, S) several initial beliefs to plan for at once (default:
                 the model's one). This is the thesis' augmented POMDP (sec. 6.2.1): a
                 fictitious first step that reveals which of the K beliefs holds, with
@@ -462,15 +463,16 @@ class PointBasedSolver:
             ups = np.array([self.upper(b) for b in roots])
             return lows, ups
 
+        trials = 0
+
         def record(lows, ups):
             elapsed = time.perf_counter() - start
             lo, up = float(w @ lows), float(w @ ups)
             self.report.history.append((elapsed, lo, up))
             if callback is not None:
-                callback(elapsed, lo, up)
+                callback(elapsed, lo, up, trials)
 
         record(*bounds())
-        trials = 0
         while time.perf_counter() - start < seconds and (max_trials is None
                                                          or trials < max_trials):
             trials += 1

@@ -36,7 +36,7 @@ def test_bad_files_are_reported_with_their_line(tmp_path, capsys):
 
 
 def test_the_cli_offers_exactly_the_solvers_trial_rules(capsys):
-    from cmanip.cli import TRIAL_RULES
+    from cmanip.pomdp import TRIAL_RULES
     from planning.pomdp.point_based import PointBasedSolver
 
     assert TRIAL_RULES == PointBasedSolver.TRIAL_RULES

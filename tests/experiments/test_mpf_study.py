@@ -35,7 +35,7 @@ def test_compare_part_writes_summary_and_figure(tmp_path):
 def test_a_user_polygon_runs_without_code_changes(tmp_path):
     obj = tmp_path / "wedge.yaml"
     obj.write_text("shape: polygon\nvertices_m: [[-0.03, -0.04], [0.04, 0.0], [-0.03, 0.04]]\n"
-                   "height_m: 0.1\n")
+                   "height_m: 0.1\nmass_kg: 0.2\n")
     code = main(["experiment", "mpf", "--part", "compare", "--trials", "2",
                  "--object", str(obj), "--push-distance", "0.15", "--out",
                  str(tmp_path / "out"), "--no-progress"])

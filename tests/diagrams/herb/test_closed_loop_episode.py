@@ -106,7 +106,7 @@ def test_run_command_rejects_bad_settings_before_any_work(tmp_path, capsys):
     assert main(["run", "--particles", "2", "--out", str(tmp_path)]) == 2
     assert "particles must be >= 10" in capsys.readouterr().err
     assert main(["experiment", "closedloop", "--trials", "0", "--out", str(tmp_path)]) == 2
-    assert "--trials must be >= 1" in capsys.readouterr().err
+    assert "trials must be >= 1" in capsys.readouterr().err
 
 
 def test_the_goal_is_never_drawn_in_the_object_colour():

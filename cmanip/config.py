@@ -1,0 +1,96 @@
+"""Run configurations: what a ``cmanip run`` or ``cmanip experiment closedloop`` does, as
+one settings value loadable from YAML (``--config FILE``), overridden by the options given
+on the command line, and written beside the outputs as ``DIR/config.yaml`` so that
+``--config DIR/config.yaml`` replays the run.
+
+Every default is written once: in the settings dataclasses of the layers below
+(:class:`~diagrams.herb.settings.EpisodeSettings`,
+:class:`~experiments.closedloop_study.ClosedLoopSettings`,
+:class:`~planning.hand.solution.HandSolveSettings`) and, for what the closed loop solves,
+in :data:`CLOSED_LOOP_SOLVER` here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from diagrams.herb.settings import EpisodeSettings
+from experiments.closedloop_study import ClosedLoopSettings
+from models.config import Fields
+from models.settings import settings_from_fields, write_settings
+from planning.hand.solution import HandSolveSettings
+
+CLOSED_LOOP_SOLVER = HandSolveSettings(object_name="bottle", solve_seconds=600.0,
+                                       solve_trials=400)
+"""The closed loop's planning model: the bottle of the thesis' real-robot trials, solved
+for 400 search trials (about 60 s; a trial budget makes the policy the same on every
+machine), with a 600 s wall-time cap."""
+
+DEFAULT_CACHE = "out/cache"
+"""Where solved planning models are kept (relative to the working directory)."""
+
+
+def _same_object(episode_object: str, solver: HandSolveSettings) -> None:
+    if episode_object != solver.object_name:
+        raise ValueError(f"the episode pushes {episode_object!r} but the planning model is "
+                         f"solved for {solver.object_name!r}; set both (--object sets both)")
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """One closed-loop episode (``cmanip run``).
+
+    Attributes:
+        episode: the episode.
+        solver: the planning model and its solve (its object must be the episode's).
+        cache_dir: where solved planning models are kept.
+    """
+
+    episode: EpisodeSettings = EpisodeSettings()
+    solver: HandSolveSettings = CLOSED_LOOP_SOLVER
+    cache_dir: str = DEFAULT_CACHE
+
+    def __post_init__(self):
+        _same_object(self.episode.object_name, self.solver)
+
+
+@dataclass(frozen=True)
+class ClosedLoopStudyConfig:
+    """The closed-loop study (``cmanip experiment closedloop``).
+
+    Attributes:
+        study: the study.
+        solver: the planning model and its solve (its object must be the episodes').
+        cache_dir: where solved planning models are kept.
+    """
+
+    study: ClosedLoopSettings = ClosedLoopSettings()
+    solver: HandSolveSettings = CLOSED_LOOP_SOLVER
+    cache_dir: str = DEFAULT_CACHE
+
+    def __post_init__(self):
+        _same_object(self.study.episode.object_name, self.solver)
+
+
+def load_config(cls, path: Path | None):
+    """``cls`` from the YAML file ``path``, or ``cls()`` without one.
+
+    Raises:
+        ConfigError: the file is missing or malformed (the message names the field).
+    """
+    return cls() if path is None else settings_from_fields(cls, Fields.from_file(path))
+
+
+def with_object(solver: HandSolveSettings, name: str) -> HandSolveSettings:
+    """``solver`` for another pushed object."""
+    return replace(solver, object_name=name)
+
+
+def write_config(config, out_dir: Path) -> Path:
+    """Write ``config`` as ``out_dir/config.yaml``; return its path."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / "config.yaml"
+    write_settings(config, path, comment="the resolved configuration of this run; replay it "
+                                         "with --config")
+    return path

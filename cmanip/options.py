@@ -1,0 +1,45 @@
+"""What every ``cmanip`` command shares: the help format, options whose defaults live in a
+settings dataclass, the Meshcat wait, and writing a report."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter,
+                    argparse.RawDescriptionHelpFormatter):
+    """Shows each option's default after its help, and descriptions as written."""
+
+
+def subcommand(parent, name: str, help: str, description: str | None = None):
+    """A sub-parser of ``parent`` with :class:`HelpFormatter`."""
+    return parent.add_parser(name, help=help, description=description or help,
+                             formatter_class=HelpFormatter)
+
+
+def setting_option(parser, flag: str, default, help: str, **kwargs) -> None:
+    """An option that overrides a setting only when given: its value defaults to
+    ``argparse.SUPPRESS`` (absent from the namespace), and its help shows the setting's
+    default, read from the settings dataclass (the one place it is written)."""
+    parser.add_argument(flag, default=argparse.SUPPRESS,
+                        help=f"{help} (default: {default})", **kwargs)
+
+
+def wait_for_meshcat(url: str) -> None:
+    """Keep the live Meshcat up until Enter, when a terminal can answer; otherwise say so
+    and return (a pipe or a batch job has no Enter to give)."""
+    if sys.stdin is not None and sys.stdin.isatty():
+        input(f"Meshcat stays up at {url} until you press Enter... ")
+    else:
+        print("standard input is not a terminal: not waiting; the recording is in "
+              "replay.html", flush=True)
+
+
+def write_json(report: dict, path: Path | None) -> None:
+    """Write ``report`` to ``path`` (if given) as indented JSON."""
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(report, indent=2) + "\n")

@@ -1,0 +1,79 @@
+"""Runs configured from files: ``cmanip run --config FILE``, the resolved ``config.yaml``
+written beside the outputs, and its replay."""
+
+import json
+
+import pytest
+import yaml
+
+from cmanip.cli import main
+from cmanip.config import RunConfig, load_config
+from diagrams.herb.settings import EpisodeSettings
+from models.config import ConfigError
+from models.settings import settings_to_dict, write_settings
+from planning.hand.precontact import PreContactSettings
+
+TIMINGS = ("wall_time_s", "real_time_factor", "planning_ms", "planning_ms_median")
+
+
+def _small_run(small_hand_solution, tmp_path):
+    """A short episode whose pre-contact search looks 3 steps ahead, so it ends by its
+    depth, long before its wall-time limit (which would make the run depend on the
+    machine's speed)."""
+    _, solver, cache = small_hand_solution
+    episode = EpisodeSettings(object_name="small_box", policy="pomdp", estimator="cpf",
+                              particles=60, horizon=3, belief_mean=(0.30, 0.0, 0.0),
+                              precontact=PreContactSettings(horizon=3, time_limit_s=60.0),
+                              seed=4)
+    path = tmp_path / "small.yaml"
+    write_settings(RunConfig(episode, solver, str(cache)), path)
+    return path
+
+
+def test_a_run_replays_from_its_config_yaml(small_hand_solution, tmp_path, capsys):
+    config = _small_run(small_hand_solution, tmp_path)
+    first, second = tmp_path / "first", tmp_path / "second"
+    assert main(["run", "--config", str(config), "--seed", "5", "--out", str(first),
+                 "--no-progress"]) == 0
+    resolved = yaml.safe_load((first / "config.yaml").read_text())
+    assert resolved["episode"]["seed"] == 5 and resolved["episode"]["particles"] == 60
+    assert main(["run", "--config", str(first / "config.yaml"), "--out", str(second),
+                 "--no-progress"]) == 0
+    a = json.loads((first / "summary.json").read_text())
+    b = json.loads((second / "summary.json").read_text())
+    for key in TIMINGS:  # wall-clock measurements, the only things allowed to differ
+        a.pop(key), b.pop(key)
+    assert a == b
+    assert (first / "config.yaml").read_text() == (second / "config.yaml").read_text()
+
+
+def test_options_override_the_file_and_defaults_are_the_settings_own(tmp_path):
+    path = tmp_path / "run.yaml"
+    path.write_text("episode:\n  particles: 80\n  horizon: 7\n")
+    config = load_config(RunConfig, path)
+    assert config.episode.particles == 80 and config.episode.horizon == 7
+    assert config.episode.policy == EpisodeSettings().policy
+    assert settings_to_dict(load_config(RunConfig, None)) == settings_to_dict(RunConfig())
+
+
+@pytest.mark.parametrize("text, field", [
+    ("episode:\n  particles: many\n", "episode.particles"),
+    ("episode:\n  partcles: 10\n", "episode.partcles"),
+    ("solver:\n  solve_seconds: -1\n", "solver"),
+    ("episode:\n  belief_mean: [0.3, 0.0]\n", "episode.belief_mean"),
+])
+def test_a_bad_config_names_the_file_and_field(tmp_path, capsys, text, field):
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as err:
+        load_config(RunConfig, path)
+    assert str(path) in str(err.value) and field in str(err.value)
+    assert main(["run", "--config", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert str(path) in capsys.readouterr().err
+
+
+def test_the_episode_and_the_model_must_push_the_same_object(tmp_path):
+    path = tmp_path / "mismatch.yaml"
+    path.write_text("episode:\n  object_name: small_box\n")
+    with pytest.raises(ConfigError, match="planning model is solved for 'bottle'"):
+        load_config(RunConfig, path)
