@@ -132,6 +132,12 @@ class ObjectSpec:
         return ObjectSpec(name=name, height_m=height, mass_kg=mass, material=material,
                           rgba=tuple(rgba), source=fields.source, **geometry)
 
+    @property
+    def rotationally_symmetric(self) -> bool:
+        """Does turning the object about its vertical axis leave it the same (a cylinder)?
+        Its orientation is then unobservable and its error meaningless."""
+        return self.shape == "cylinder"
+
     def footprint(self) -> np.ndarray:
         """(V, 2) counter-clockwise outline of the object in its body frame (m).
 

@@ -31,7 +31,8 @@ def write_episode(episode: Episode, out_dir: Path) -> None:
 
 
 def plot_belief(episode: Episode, path: Path) -> None:
-    """Estimation error over time (position cm, orientation deg; contact readings and
+    """Estimation error over time (position cm, orientation deg unless the object is
+    rotationally symmetric, when orientation is unobservable; contact readings and
     the time in the goal shaded) beside a top view of the palm, the true object and the
     belief mean in the world."""
     trace, summary = episode.trace, episode.summary
@@ -39,8 +40,9 @@ def plot_belief(episode: Episode, path: Path) -> None:
     fig, (ax_err, ax_top) = plt.subplots(1, 2, figsize=(12, 4.8),
                                          gridspec_kw={"width_ratios": [1.4, 1]})
     ax_err.plot(t, 100 * trace["rmse_m"], color="tab:blue", label="position RMSE (cm)")
-    ax_err.plot(t, np.rad2deg(trace["rmse_rad"]) / 10, color="tab:orange",
-                label="orientation RMSE (10 deg)")
+    if not summary.get("object_rotationally_symmetric", False):  # else unobservable
+        ax_err.plot(t, np.rad2deg(trace["rmse_rad"]) / 10, color="tab:orange",
+                    label="orientation RMSE (10 deg)")
     touched = trace["readings"].any(axis=1)
     top = max(1.0, float(np.nanmax(100 * trace["rmse_m"])))
     ax_err.fill_between(t, 0, top, where=trace["in_goal"], color="tab:green", alpha=0.12,

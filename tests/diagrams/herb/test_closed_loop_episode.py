@@ -116,3 +116,17 @@ def test_the_goal_is_never_drawn_in_the_object_colour():
         goal = goal_rgba(rgba)
         distance = np.linalg.norm(np.array([goal.r(), goal.g(), goal.b()]) - rgba[:3])
         assert distance > 0.5
+
+
+def test_a_failed_episode_has_no_time_to_goal_and_a_box_is_not_symmetric(episode):
+    summary = episode.summary
+    assert summary["object_rotationally_symmetric"] is False
+    assert not summary["success"]  # three steps from 30 cm cannot reach the goal
+    assert summary["time_to_goal_s"] is None
+
+
+def test_a_bottle_is_rotationally_symmetric():
+    from models.objects import ObjectSpec
+
+    assert ObjectSpec.load("bottle").rotationally_symmetric
+    assert not ObjectSpec.load("small_box").rotationally_symmetric
