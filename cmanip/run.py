@@ -23,6 +23,28 @@ EPISODE = EpisodeSettings()
 SOLVER = RunConfig().solver
 
 
+EPISODE_OPTIONS = (
+    ("--estimator", EPISODE.estimator,
+     "the estimator's filter: manifold (MPF) or conventional (CPF)", {"choices": ESTIMATORS}),
+    ("--planner-belief", EPISODE.planner_belief,
+     "the policy acts on the estimator's belief, or on its own filters as in the thesis "
+     "(sec. 6.4.1)", {"choices": PLANNER_BELIEFS}),
+    ("--on-infeasible", EPISODE.on_infeasible,
+     "when the policy's action is infeasible: end the episode (the thesis' rule) or take "
+     "the next-ranked feasible action", {"choices": ("stop", "next")}),
+    ("--horizon", EPISODE.horizon, "decisions per episode", {"type": int}),
+    ("--particles", EPISODE.particles, "estimator particles", {"type": int}),
+    ("--plan-seconds", EPISODE.precontact.time_limit_s,
+     "pre-contact search time limit (s; thesis: 20)", {"type": float}),
+    ("--solve-seconds", SOLVER.solve_seconds,
+     "point-based solver wall-time cap (s) when the policy is not cached", {"type": float}),
+    ("--solve-trials", SOLVER.solve_trials,
+     "stop the solver after this many search trials (a trial budget makes the policy "
+     "machine-independent; 0: the time cap alone)", {"type": int}),
+)
+"""(flag, default, help, argparse keywords) of the episode and solver options."""
+
+
 def add_episode_options(parser, *, policy: bool) -> None:
     """The episode options of ``run`` and ``experiment closedloop`` (each overrides the
     configuration's value only when given)."""
@@ -36,25 +58,8 @@ def add_episode_options(parser, *, policy: bool) -> None:
     if policy:
         setting_option(parser, "--policy", EPISODE.policy, "post-contact policy",
                        choices=POLICIES)
-    setting_option(parser, "--estimator", EPISODE.estimator,
-                   "the estimator's filter: manifold (MPF) or conventional (CPF)",
-                   choices=ESTIMATORS)
-    setting_option(parser, "--planner-belief", EPISODE.planner_belief,
-                   "the policy acts on the estimator's belief, or on its own filters as in "
-                   "the thesis (sec. 6.4.1)", choices=PLANNER_BELIEFS)
-    setting_option(parser, "--on-infeasible", EPISODE.on_infeasible,
-                   "when the policy's action is infeasible: end the episode (the thesis' "
-                   "rule) or take the next-ranked feasible action", choices=("stop", "next"))
-    setting_option(parser, "--horizon", EPISODE.horizon, "decisions per episode", type=int)
-    setting_option(parser, "--particles", EPISODE.particles, "estimator particles", type=int)
-    setting_option(parser, "--plan-seconds", EPISODE.precontact.time_limit_s,
-                   "pre-contact search time limit (s; thesis: 20)", type=float)
-    setting_option(parser, "--solve-seconds", SOLVER.solve_seconds,
-                   "point-based solver wall-time cap (s) when the policy is not cached",
-                   type=float)
-    setting_option(parser, "--solve-trials", SOLVER.solve_trials,
-                   "stop the solver after this many search trials (a trial budget makes "
-                   "the policy machine-independent; 0: the time cap alone)", type=int)
+    for flag, default, text, kwargs in EPISODE_OPTIONS:
+        setting_option(parser, flag, default, text, **kwargs)
     setting_option(parser, "--cache", RunConfig().cache_dir,
                    "where solved planning models are kept")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
