@@ -1,4 +1,4 @@
-"""Run configurations: what a ``cmanip run`` or ``cmanip experiment closedloop`` does, as
+"""Run configurations: what a ``cmanip run`` or a ``cmanip experiment`` study does, as
 one settings value loadable from YAML (``--config FILE``), overridden by the options given
 on the command line, and written beside the outputs as ``DIR/config.yaml`` so that
 ``--config DIR/config.yaml`` replays the run.
@@ -6,8 +6,12 @@ on the command line, and written beside the outputs as ``DIR/config.yaml`` so th
 Every default is written once: in the settings dataclasses of the layers below
 (:class:`~diagrams.herb.settings.EpisodeSettings`,
 :class:`~experiments.closedloop_study.ClosedLoopSettings`,
-:class:`~planning.hand.solution.HandSolveSettings`) and, for what the closed loop solves,
-in :data:`CLOSED_LOOP_SOLVER` here.
+:class:`~experiments.mpf_study.TrialSettings`,
+:class:`~experiments.handplan_study.HandplanSettings`,
+:class:`~experiments.visuotactile_study.VisuotactileSettings`,
+:class:`~planning.hand.solution.HandSolveSettings`), in the study configurations here
+(which part, how many trials, which seed) and, for what the closed loop solves, in
+:data:`CLOSED_LOOP_SOLVER` here.
 """
 
 from __future__ import annotations
@@ -17,6 +21,12 @@ from pathlib import Path
 
 from diagrams.herb.settings import EpisodeSettings
 from experiments.closedloop_study import ClosedLoopSettings
+from experiments.handplan_study import PARTS as HANDPLAN_PARTS
+from experiments.handplan_study import HandplanSettings
+from experiments.mpf_study import PARTS as MPF_PARTS
+from experiments.mpf_study import TrialSettings
+from experiments.visuotactile_study import PARTS as VISUOTACTILE_PARTS
+from experiments.visuotactile_study import VisuotactileSettings
 from models.config import Fields
 from models.settings import settings_from_fields, write_settings
 from planning.hand.solution import HandSolveSettings
@@ -73,6 +83,65 @@ class ClosedLoopStudyConfig:
         _same_object(self.study.episode.object_name, self.solver)
 
 
+def _check_part(part: str, parts: tuple[str, ...]) -> None:
+    if part not in parts:
+        raise ValueError(f"part must be one of {', '.join(parts)}, got {part!r}")
+
+
+@dataclass(frozen=True)
+class MpfStudyConfig:
+    """The MPF study (``cmanip experiment mpf``; thesis sec. 4.3).
+
+    Attributes:
+        part: which figure (``all``: every part into its own folder).
+        trials: trials per condition (>= 2).
+        seed: study seed; trial j is seeded from (seed, j).
+        trial: what one trial does (object, sensors, belief, filters).
+    """
+
+    part: str = "compare"
+    trials: int = 100
+    seed: int = 0
+    trial: TrialSettings = TrialSettings()
+
+    def __post_init__(self):
+        _check_part(self.part, (*MPF_PARTS, "all"))
+        if self.trials < 2:
+            raise ValueError(f"trials must be >= 2, got {self.trials}")
+
+
+@dataclass(frozen=True)
+class HandplanStudyConfig:
+    """The hand-relative planning study (``cmanip experiment handplan``; thesis ch. 6).
+
+    Attributes:
+        part: which comparison.
+        study: the study's settings (trials, seed, solver budgets, the problem).
+    """
+
+    part: str = "post-contact"
+    study: HandplanSettings = HandplanSettings()
+
+    def __post_init__(self):
+        _check_part(self.part, HANDPLAN_PARTS)
+
+
+@dataclass(frozen=True)
+class VisuotactileStudyConfig:
+    """The visuo-tactile study (``cmanip experiment visuotactile``; Yu and Rodriguez 2018).
+
+    Attributes:
+        part: which comparison (``all``: every one).
+        study: the study's settings (trials, seed, rig).
+    """
+
+    part: str = "methods"
+    study: VisuotactileSettings = VisuotactileSettings()
+
+    def __post_init__(self):
+        _check_part(self.part, (*VISUOTACTILE_PARTS, "all"))
+
+
 def load_config(cls, path: Path | None):
     """``cls`` from the YAML file ``path``, or ``cls()`` without one.
 
@@ -85,6 +154,15 @@ def load_config(cls, path: Path | None):
 def with_object(solver: HandSolveSettings, name: str) -> HandSolveSettings:
     """``solver`` for another pushed object."""
     return replace(solver, object_name=name)
+
+
+def overridden(settings, args, names: dict[str, str]):
+    """``settings`` with the fields ``names`` maps options to replaced by the options given
+    on the command line (those declared with :func:`cmanip.options.setting_option`, absent
+    from ``args`` unless given)."""
+    given = vars(args)
+    return replace(settings, **{field: given[option] for option, field in names.items()
+                                if option in given})
 
 
 def write_config(config, out_dir: Path) -> Path:

@@ -14,20 +14,27 @@ import argparse
 from dataclasses import replace
 from pathlib import Path
 
-from cmanip.config import ClosedLoopStudyConfig, load_config, write_config
+from cmanip.config import (
+    ClosedLoopStudyConfig,
+    HandplanStudyConfig,
+    MpfStudyConfig,
+    VisuotactileStudyConfig,
+    load_config,
+    overridden,
+    write_config,
+)
 from cmanip.options import setting_option, subcommand
 from cmanip.run import add_episode_options, override_episode, override_solver, solve
 from diagrams.herb.settings import POLICIES
 from experiments.closedloop_study import ClosedLoopSettings
-from experiments.handplan_study import HandplanSettings
+from experiments.handplan_study import PARTS as HANDPLAN_PARTS
 from experiments.mpf_study import PARTS as MPF_PARTS
-from experiments.mpf_study import TrialSettings
-from experiments.visuotactile_study import VisuotactileSettings
+from experiments.visuotactile_study import PARTS as VISUOTACTILE_PARTS
 
-MPF = TrialSettings()
-HANDPLAN = HandplanSettings()
+MPF = MpfStudyConfig()
+HANDPLAN = HandplanStudyConfig()
 CLOSEDLOOP = ClosedLoopSettings()
-VISUOTACTILE = VisuotactileSettings()
+VISUOTACTILE = VisuotactileStudyConfig()
 
 
 def register(commands) -> None:
@@ -36,18 +43,21 @@ def register(commands) -> None:
     studies = experiment.add_subparsers(dest="study", required=True, metavar="STUDY")
     mpf = subcommand(studies, "mpf", "CPF vs MPF and the manifold representations "
                                      "(thesis sec. 4.3)")
-    mpf.add_argument("--part", default="compare", choices=[*MPF_PARTS, "all"],
-                     help="which figure (all: every part into its own folder)")
-    mpf.add_argument("--trials", type=int, default=100, help="trials per condition")
-    mpf.add_argument("--seed", type=int, default=0, help="study seed; trial j is seeded "
-                                                         "from (seed, j)")
-    mpf.add_argument("--workers", type=int, default=1, help="processes")
-    mpf.add_argument("--object", default=MPF.object, help="object name or path to a YAML")
-    mpf.add_argument("--sensors", default=MPF.sensors,
-                     help="planar sensor layout (low, medium, high or a YAML path)")
-    mpf.add_argument("--push-distance", type=float, default=MPF.push_distance_m,
-                     help="hand travel (m)")
-    mpf.add_argument("--out", type=Path, required=True, help="output directory")
+    _config_option(mpf)
+    setting_option(mpf, "--part", MPF.part, "which figure (all: every part into its own "
+                                            "folder)", choices=[*MPF_PARTS, "all"])
+    setting_option(mpf, "--trials", MPF.trials, "trials per condition", type=int)
+    setting_option(mpf, "--seed", MPF.seed, "study seed; trial j is seeded from (seed, j)",
+                   type=int)
+    mpf.add_argument("--workers", type=int, default=1,
+                     help="processes (the results do not depend on it)")
+    setting_option(mpf, "--object", MPF.trial.object, "object name or path to a YAML")
+    setting_option(mpf, "--sensors", MPF.trial.sensors,
+                   "planar sensor layout (low, medium, high or a YAML path)")
+    setting_option(mpf, "--push-distance", MPF.trial.push_distance_m, "hand travel (m)",
+                   type=float)
+    mpf.add_argument("--out", type=Path, required=True,
+                     help="output directory (summary.json, figures, config.yaml)")
     mpf.add_argument("--no-progress", action="store_true", help="no progress bars")
     mpf.set_defaults(handler=_mpf)
 
@@ -60,30 +70,32 @@ def register(commands) -> None:
 
     handplan = subcommand(studies, "handplan", "QMDP vs point-based post-contact policies, "
                                                "pre-contact A*, sensor coverage (thesis ch. 6)")
-    handplan.add_argument("--part", default="post-contact",
-                          choices=["post-contact", "full", "coverage", "all"],
-                          help="which comparison")
-    handplan.add_argument("--trials", type=int, default=HANDPLAN.trials,
-                          help="continuous-model trials per policy (discrete: twice as many)")
-    handplan.add_argument("--seed", type=int, default=HANDPLAN.seed, help="master seed")
-    handplan.add_argument("--solve-seconds", type=float, default=HANDPLAN.solve_seconds,
-                          help="point-based solver budget (s)")
-    handplan.add_argument("--solve-trials", type=int, default=HANDPLAN.solve_trials,
-                          help="also stop the solver after this many search trials "
-                               "(reproducible across machines)")
-    handplan.add_argument("--plan-seconds", type=float,
-                          default=HANDPLAN.precontact.time_limit_s,
-                          help="pre-contact search budget per belief (s)")
+    _config_option(handplan)
+    setting_option(handplan, "--part", HANDPLAN.part, "which comparison",
+                   choices=HANDPLAN_PARTS)
+    setting_option(handplan, "--trials", HANDPLAN.study.trials,
+                   "continuous-model trials per policy (discrete: twice as many)", type=int)
+    setting_option(handplan, "--seed", HANDPLAN.study.seed, "master seed", type=int)
+    setting_option(handplan, "--solve-seconds", HANDPLAN.study.solve_seconds,
+                   "point-based solver budget (s)", type=float)
+    setting_option(handplan, "--solve-trials", HANDPLAN.study.solve_trials,
+                   "also stop the solver after this many search trials (reproducible "
+                   "across machines)", type=int)
+    setting_option(handplan, "--plan-seconds", HANDPLAN.study.precontact.time_limit_s,
+                   "pre-contact search budget per belief (s)", type=float)
     handplan.add_argument("--search-until-contact", action="store_true",
                           help="pre-contact search ignores the 85 %% trust-region stop")
-    handplan.add_argument("--horizon", type=int, default=HANDPLAN.horizon,
-                          help="post-contact steps")
+    setting_option(handplan, "--horizon", HANDPLAN.study.horizon, "post-contact steps",
+                   type=int)
     handplan.add_argument("--problem", type=Path, default=None,
                           help="YAML of HandProblemSpec fields (trust region, cells, goal, "
-                               "discount, samples per state; default: the thesis' problem)")
+                               "discount, samples per state; overrides on the thesis' "
+                               "problem)")
     handplan.add_argument("--quick", action="store_true",
-                          help="a small problem (coarse trust region, few samples) to try it out")
-    handplan.add_argument("--out", type=Path, required=True, help="output directory")
+                          help="a small problem (coarse trust region, few samples) to try "
+                               "it out; the options given still apply")
+    handplan.add_argument("--out", type=Path, required=True,
+                          help="output directory (summary.json, figures, config.yaml)")
     handplan.set_defaults(handler=_handplan)
 
     closedloop = subcommand(studies, "closedloop", "closed-loop episodes from the thesis' "
@@ -102,37 +114,54 @@ def register(commands) -> None:
 
     vt = subcommand(studies, "visuotactile",
                     "vision + touch smoothing vs EKF and vision (Yu and Rodriguez 2018)")
-    vt.add_argument("--part", default="methods",
-                    choices=["noise", "methods", "shapes", "surfaces", "costs", "timing",
-                             "all"], help="which comparison")
-    vt.add_argument("--trials", type=int, default=VISUOTACTILE.trials,
-                    help="runs per condition (at least 2)")
-    vt.add_argument("--seed", type=int, default=VISUOTACTILE.seed, help="master seed")
-    vt.add_argument("--noise-trials", type=int, default=VISUOTACTILE.noise_trials,
-                    help="training runs for the noise identification")
-    vt.add_argument("--rig", type=Path, default=None,
-                    help="rig YAML (default: the built-in pusher_slider.yaml)")
-    vt.add_argument("--out", type=Path, required=True, help="output directory")
+    _config_option(vt)
+    setting_option(vt, "--part", VISUOTACTILE.part, "which comparison",
+                   choices=[*VISUOTACTILE_PARTS, "all"])
+    setting_option(vt, "--trials", VISUOTACTILE.study.trials,
+                   "runs per condition (at least 2)", type=int)
+    setting_option(vt, "--seed", VISUOTACTILE.study.seed, "master seed", type=int)
+    setting_option(vt, "--noise-trials", VISUOTACTILE.study.noise_trials,
+                   "training runs for the noise identification", type=int)
+    setting_option(vt, "--rig", "the built-in pusher_slider.yaml", "rig YAML")
+    vt.add_argument("--out", type=Path, required=True,
+                    help="output directory (summary.json, figures, config.yaml)")
     vt.add_argument("--no-progress", action="store_true", help="no progress bars")
     vt.set_defaults(handler=_visuotactile)
 
 
-def _mpf(args: argparse.Namespace) -> int:
-    from experiments.mpf_study import TrialSettings, run_study
+def _config_option(parser) -> None:
+    parser.add_argument("--config", type=Path, default=None,
+                        help="a YAML configuration (e.g. a study's DIR/config.yaml); the "
+                             "options below override it")
+
+
+def resolve_mpf(args: argparse.Namespace) -> MpfStudyConfig:
+    """The MPF study's configuration: ``--config`` (or the defaults), then the options
+    given; the object and sensor files are read once here, so a bad one fails before any
+    trial runs."""
     from models.objects import ObjectSpec
     from models.planar.hand import PlanarSensorLayout
 
-    if args.trials < 2 or args.workers < 1:
-        raise ValueError("--trials must be >= 2 and --workers >= 1")
-    if not 0.0 < args.push_distance <= 2.0:
-        raise ValueError(f"--push-distance {args.push_distance} m is outside (0, 2] m")
-    ObjectSpec.load(args.object)  # fail early, with the file and field, on a bad input
-    PlanarSensorLayout.load(args.sensors)
-    base = TrialSettings(object=args.object, sensors=args.sensors,
-                         push_distance_m=args.push_distance)
-    summary = run_study(args.part, base, args.trials, args.seed, args.workers, args.out,
-                        progress=not args.no_progress)
-    parts = summary["parts"] if args.part == "all" else {args.part: summary}
+    config = load_config(MpfStudyConfig, args.config)
+    trial = overridden(config.trial, args, {"object": "object", "sensors": "sensors",
+                                            "push_distance": "push_distance_m"})
+    config = overridden(replace(config, trial=trial), args,
+                        {"part": "part", "trials": "trials", "seed": "seed"})
+    ObjectSpec.load(config.trial.object)
+    PlanarSensorLayout.load(config.trial.sensors)
+    return config
+
+
+def _mpf(args: argparse.Namespace) -> int:
+    from experiments.mpf_study import run_study
+
+    if args.workers < 1:
+        raise ValueError(f"--workers must be >= 1, got {args.workers}")
+    config = resolve_mpf(args)
+    summary = run_study(config.part, config.trial, config.trials, config.seed, args.workers,
+                        args.out, progress=not args.no_progress)
+    write_config(config, args.out)
+    parts = summary["parts"] if config.part == "all" else {config.part: summary}
     for name, part in parts.items():
         print(f"{name}:")
         for label, entry in part["filters"].items():
@@ -142,7 +171,7 @@ def _mpf(args: argparse.Namespace) -> int:
                      if fail is not None else "")
             print(f"  {label:28s} post-contact RMSE {entry['post_contact_rmse_cm']:.2f} cm, "
                   f"{entry['post_contact_rmse_deg']:.1f} deg{extra}")
-    print(f"wrote {args.out}/summary.json and figures")
+    print(f"wrote {args.out}/summary.json, figures and config.yaml")
     return 0
 
 
@@ -166,31 +195,36 @@ def _pushval(args: argparse.Namespace) -> int:
     return 0
 
 
-def _handplan(args: argparse.Namespace) -> int:
-    from dataclasses import replace
-
-    from experiments.handplan_study import HandplanSettings, quick_settings, run_study
+def resolve_handplan(args: argparse.Namespace) -> HandplanStudyConfig:
+    """The hand-relative study's configuration: ``--config`` (or the defaults), then
+    ``--problem``, then ``--quick``'s small problem, then the other options given."""
+    from experiments.handplan_study import quick_settings
     from planning.hand.discretization import HandProblemSpec
-    from planning.hand.precontact import PreContactSettings
 
-    if args.trials < 2 or args.horizon < 1:
-        raise ValueError("--trials must be >= 2 and --horizon >= 1")
-    if args.solve_seconds <= 0 or args.plan_seconds <= 0:
-        raise ValueError("--solve-seconds and --plan-seconds must be > 0")
-    spec = HandProblemSpec.load(args.problem) if args.problem else HandProblemSpec()
-    settings = HandplanSettings(trials=args.trials, seed=args.seed,
-                                solve_seconds=args.solve_seconds,
-                                solve_trials=args.solve_trials, horizon=args.horizon,
-                                precontact=PreContactSettings(
-                                    time_limit_s=args.plan_seconds,
-                                    trust_mass_stop=None if args.search_until_contact else 0.85),
-                                spec=spec)
+    config = load_config(HandplanStudyConfig, args.config)
+    study = config.study
+    if args.problem is not None:
+        study = replace(study, spec=HandProblemSpec.load(args.problem))
     if args.quick:
-        settings = quick_settings(settings)
-        settings = replace(settings, precontact=replace(
-            settings.precontact, time_limit_s=args.plan_seconds,
-            trust_mass_stop=None if args.search_until_contact else 0.85))
-    summary = run_study(args.part, settings, args.out)
+        study = quick_settings(study)
+    given = vars(args)
+    precontact = overridden(study.precontact, args, {"plan_seconds": "time_limit_s"})
+    if args.search_until_contact:
+        precontact = replace(precontact, trust_mass_stop=None)
+    study = overridden(replace(study, precontact=precontact), args, {
+        "trials": "trials", "seed": "seed", "solve_seconds": "solve_seconds",
+        "solve_trials": "solve_trials", "horizon": "horizon"})
+    return HandplanStudyConfig(given.get("part", config.part), study)
+
+
+def _handplan(args: argparse.Namespace) -> int:
+    from experiments.handplan_study import run_study
+
+    config = resolve_handplan(args)
+    if config.study.trials < 2:
+        raise ValueError(f"--trials must be >= 2, got {config.study.trials}")
+    summary = run_study(config.part, config.study, args.out)
+    write_config(config, args.out)
     for key, label in (("post_contact_discrete", "post-contact, discrete model"),
                        ("post_contact", "post-contact, continuous model"),
                        ("full", "full policy, continuous model")):
@@ -206,7 +240,7 @@ def _handplan(args: argparse.Namespace) -> int:
         print(f"  coverage {sensors}: {obs['feasible']} of {obs['possible']} contact readings "
               f"feasible; full-policy success " + ", ".join(
                   f"{n} {r['success_rate']:.0%}" for n, r in c["full"].items()))
-    print(f"wrote {args.out}/summary.json and figures")
+    print(f"wrote {args.out}/summary.json, figures and config.yaml")
     return 0
 
 
@@ -236,22 +270,31 @@ def resolve_closedloop(args: argparse.Namespace) -> ClosedLoopStudyConfig:
     if "policy" in given:
         study = replace(study, policies=POLICIES if given["policy"] == "both"
                         else (given["policy"],))
-    for option in ("trials", "seed"):
-        if option in given:
-            study = replace(study, **{option: given[option]})
+    study = overridden(study, args, {"trials": "trials", "seed": "seed"})
     return ClosedLoopStudyConfig(study, override_solver(config.solver, args),
                                  given.get("cache", config.cache_dir))
 
 
-def _visuotactile(args) -> int:
-    from experiments.visuotactile_study import VisuotactileSettings, run_study
+def resolve_visuotactile(args: argparse.Namespace) -> VisuotactileStudyConfig:
+    """The visuo-tactile study's configuration: ``--config`` (or the defaults), then the
+    options given; the rig file is read once here."""
+    config = load_config(VisuotactileStudyConfig, args.config)
+    study = overridden(config.study, args, {"trials": "trials", "seed": "seed",
+                                            "noise_trials": "noise_trials", "rig": "rig"})
+    config = overridden(replace(config, study=study), args, {"part": "part"})
+    config.study.load_rig()
+    return config
 
-    if args.trials < 2 or args.noise_trials < 1:
+
+def _visuotactile(args) -> int:
+    from experiments.visuotactile_study import run_study
+
+    config = resolve_visuotactile(args)
+    settings = config.study
+    if settings.trials < 2 or settings.noise_trials < 1:
         raise ValueError("--trials must be >= 2 and --noise-trials >= 1")
-    settings = VisuotactileSettings(trials=args.trials, seed=args.seed,
-                                    noise_trials=args.noise_trials,
-                                    rig=str(args.rig) if args.rig else None)
-    summaries = run_study(args.part, settings, args.out, progress=not args.no_progress)
+    summaries = run_study(config.part, settings, args.out, progress=not args.no_progress)
+    write_config(config, args.out)
     for part, summary in summaries.items():
         print(f"{part}:")
         blocks = summary.get("conditions") or {"": summary.get("methods", {})}
@@ -269,5 +312,5 @@ def _visuotactile(args) -> int:
         if part == "noise":
             print(f"  limit surface c {summary['c_m'] * 1e3:.1f} mm (uniform pressure "
                   f"{summary['c_uniform_pressure_m'] * 1e3:.1f} mm)")
-    print(f"wrote {args.out}/summary.json and figures")
+    print(f"wrote {args.out}/summary.json, figures and config.yaml")
     return 0

@@ -8,7 +8,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from cmanip.config import RunConfig, load_config, with_object, write_config
+from cmanip.config import RunConfig, load_config, overridden, with_object, write_config
 from cmanip.options import setting_option, subcommand, wait_for_meshcat
 from diagrams.herb.settings import (
     ESTIMATORS,
@@ -67,16 +67,12 @@ def add_episode_options(parser, *, policy: bool) -> None:
 
 def override_episode(episode: EpisodeSettings, args: argparse.Namespace) -> EpisodeSettings:
     """``episode`` with the episode options given on the command line."""
-    given = vars(args)
-    names = {"scene": "scene", "object": "object_name", "policy": "policy",
-             "estimator": "estimator", "planner_belief": "planner_belief",
-             "on_infeasible": "on_infeasible", "horizon": "horizon", "particles": "particles"}
-    episode = replace(episode, **{field: given[option] for option, field in names.items()
-                                  if option in given})
-    if "plan_seconds" in given:
-        episode = replace(episode, precontact=replace(episode.precontact,
-                                                      time_limit_s=given["plan_seconds"]))
-    return episode
+    episode = overridden(episode, args, {
+        "scene": "scene", "object": "object_name", "policy": "policy",
+        "estimator": "estimator", "planner_belief": "planner_belief",
+        "on_infeasible": "on_infeasible", "horizon": "horizon", "particles": "particles"})
+    return replace(episode, precontact=overridden(episode.precontact, args,
+                                                  {"plan_seconds": "time_limit_s"}))
 
 
 def override_solver(solver: HandSolveSettings, args: argparse.Namespace) -> HandSolveSettings:

@@ -71,6 +71,17 @@ class TrialSettings:
     tr_rollouts: int = 2000
     tr_per_rollout: int = 5
 
+    def __post_init__(self):
+        if not 0.0 < self.push_distance_m <= 2.0:
+            raise ValueError(f"push_distance_m {self.push_distance_m} m is outside (0, 2] m")
+        if not 0.0 < self.update_interval_m <= self.push_distance_m:
+            raise ValueError(f"update_interval_m must be in (0, push_distance_m], got "
+                             f"{self.update_interval_m}")
+        if min(self.std) <= 0 or self.particles < 1 or self.dual_particles < 1:
+            raise ValueError("std must be > 0, particles and dual_particles >= 1")
+        if not 0.0 <= self.mixing_rate <= 1.0:
+            raise ValueError(f"mixing_rate must be in [0, 1], got {self.mixing_rate}")
+
     @property
     def updates(self) -> int:
         return int(round(self.push_distance_m / self.update_interval_m))

@@ -2,8 +2,23 @@
 
 import pytest
 
+from models.config import ConfigError
 from models.herb.kinematics import PlanarHandIK
 from models.herb.scene import SceneSpec
+
+
+@pytest.fixture
+def refused(tmp_path):
+    """``refused(load, text, match)``: write ``text`` to a file, check that ``load(path)``
+    raises a :class:`ConfigError` naming the file and matching ``match``; return it."""
+    def check(load, text: str, match: str) -> ConfigError:
+        path = tmp_path / "input.yaml"
+        path.write_text(text)
+        with pytest.raises(ConfigError, match=match) as err:
+            load(path)
+        assert str(path) in str(err.value)
+        return err.value
+    return check
 
 
 @pytest.fixture(scope="session")

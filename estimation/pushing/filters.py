@@ -125,16 +125,9 @@ class PushingEKF:
     def run(self, steps: PushingSteps, *, start: np.ndarray | None = None) -> np.ndarray:
         """(K, 3) estimates, nan before the first camera pose (or from step 0 at
         ``start``)."""
-        out = np.full((len(steps), 3), np.nan)
-        begin = steps.start(start)
-        if begin is None:
-            return out
-        first, pose = begin
-        self.start(pose)
-        out[first] = self.mean
-        for k in range(first + 1, len(steps)):
-            vision = steps.vision[k] if steps.vision_ok[k] else None
-            previous = (steps.rods[k - 1], steps.forces[k - 1], steps.contact[k - 1])
-            out[k] = self.step(steps.rods[k], steps.forces[k], steps.contact[k], vision,
-                               previous)
-        return out
+        def begin(first, pose):
+            self.start(pose)
+            return self.mean
+
+        return steps.estimate(begin, lambda k: self.step(*steps.inputs(k), steps.vision_at(k),
+                                                         steps.inputs(k - 1)), start)

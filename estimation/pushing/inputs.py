@@ -49,6 +49,29 @@ class PushingSteps:
         frames = np.flatnonzero(self.vision_ok)
         return (int(frames[0]), self.vision[frames[0]]) if len(frames) else None
 
+    def inputs(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Step ``k``'s rod positions, forces and contact flags."""
+        return self.rods[k], self.forces[k], self.contact[k]
+
+    def vision_at(self, k: int) -> np.ndarray | None:
+        """Step ``k``'s camera pose (3,), or ``None`` without a frame."""
+        return self.vision[k] if self.vision_ok[k] else None
+
+    def estimate(self, begin, step, start: np.ndarray | None = None) -> np.ndarray:
+        """Run an online estimator over these steps: ``begin(first, pose)`` starts it at
+        :meth:`start`'s step and returns its estimate (3,) there; ``step(k)`` advances it
+        to step ``k`` and returns the estimate. Returns (K, 3), nan before the start (or
+        everywhere if the camera never saw the object and no ``start`` is given)."""
+        out = np.full((len(self), 3), np.nan)
+        found = self.start(start)
+        if found is None:
+            return out
+        first, pose = found
+        out[first] = begin(first, pose)
+        for k in range(first + 1, len(self)):
+            out[k] = step(k)
+        return out
+
     def head(self, n: int) -> PushingSteps:
         """The first ``n`` steps."""
         return replace(self, **{f.name: getattr(self, f.name)[:n] for f in fields(self)

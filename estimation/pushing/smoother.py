@@ -260,18 +260,13 @@ class VisuoTactileSmoother:
     def run(self, steps: PushingSteps, *, start: np.ndarray | None = None) -> np.ndarray:
         """Estimate every step of ``steps``; (K, 3), nan before the first camera pose (or
         from step 0 at ``start``)."""
-        out = np.full((len(steps), 3), np.nan)
-        begin = steps.start(start)
-        if begin is None:
-            return out
-        first, pose = begin
-        self.start(pose)
-        self._previous_inputs = (steps.rods[first], steps.forces[first], steps.contact[first])
-        out[first] = self._estimate
-        for k in range(first + 1, len(steps)):
-            vision = steps.vision[k] if steps.vision_ok[k] else None
-            out[k] = self.step(steps.rods[k], steps.forces[k], steps.contact[k], vision)
-        return out
+        def begin(first, pose):
+            self.start(pose)
+            self._previous_inputs = steps.inputs(first)
+            return self._estimate
+
+        return steps.estimate(begin, lambda k: self.step(*steps.inputs(k), steps.vision_at(k)),
+                              start)
 
     # -- window
     def _rebuild(self) -> None:

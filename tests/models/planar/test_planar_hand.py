@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-from models.config import ConfigError
 from models.planar.hand import PlanarHand, PlanarSensorLayout
 
 
@@ -34,19 +33,13 @@ def test_hand_dimensions_follow_the_hand_file():
     assert np.isclose(verts[:, 1].max(), 0.060, atol=1e-3)  # F3 knuckle housing edge
 
 
-def test_bad_layout_file_names_the_field(tmp_path):
-    path = tmp_path / "bad.yaml"
-    path.write_text("front_sensors: 0\n")
-    with pytest.raises(ConfigError, match="front_sensors"):
-        PlanarSensorLayout.load(path)
+def test_bad_layout_file_names_the_field(refused):
+    refused(PlanarSensorLayout.load, "front_sensors: 0\n", "front_sensors")
 
 
-def test_front_layout_needs_its_sensor_count_and_links_layout_has_five(tmp_path):
-    path = tmp_path / "bad.yaml"
-    path.write_text("min_facing: 0.1\n")
-    with pytest.raises(ConfigError, match="'front_sensors': required field is missing"):
-        PlanarSensorLayout.load(path)
-    path.write_text("kind: links\nfront_sensors: 3\n")
-    with pytest.raises(ConfigError, match="'front_sensors': a links layout has one sensor per"):
-        PlanarSensorLayout.load(path)
+def test_front_layout_needs_its_sensor_count_and_links_layout_has_five(refused):
+    refused(PlanarSensorLayout.load, "min_facing: 0.1\n",
+            "'front_sensors': required field is missing")
+    refused(PlanarSensorLayout.load, "kind: links\nfront_sensors: 3\n",
+            "'front_sensors': a links layout has one sensor per")
     assert PlanarSensorLayout.load("links").front_sensors == 5
