@@ -12,7 +12,8 @@ from cmanip.pomdp import TRIAL_RULES
 
 def register(commands) -> None:
     bench = subcommand(commands, "bench", "measurements: plant time step, filters, POMDP "
-                                          "solver, visuo-tactile smoother")
+                                          "solvers (point-based, DESPOT), visuo-tactile "
+                                          "smoother")
     kinds = bench.add_subparsers(dest="bench", required=True, metavar="BENCH")
     step = subcommand(kinds, "timestep", "accuracy and speed per plant time step")
     step.add_argument("--steps", type=float, nargs="+",
@@ -34,6 +35,22 @@ def register(commands) -> None:
                        help="where the solver's trials stop (HSVI2's rule: the comparison)")
     _json(pomdp)
     pomdp.set_defaults(handler=_pomdp)
+
+    despot = subcommand(kinds, "despot", "DESPOT on Tag, RockSample or a .pomdp file, beside "
+                                         "the reference C++ DESPOT when it is built")
+    despot.add_argument("--problem", nargs="+", default=["rocksample:7:8", "tag"],
+                        help="problems: tag, rocksample:N:K or a .pomdp path")
+    despot.add_argument("--seconds-per-step", type=float, nargs="+", default=[0.1, 1.0],
+                        help="wall-clock budget per decision (s)")
+    despot.add_argument("--episodes", type=int, default=100, help="episodes per budget")
+    despot.add_argument("--steps", type=int, default=90, help="decisions per episode at most")
+    despot.add_argument("--scenarios", type=int, default=500, help="DESPOT's K")
+    despot.add_argument("--seed", type=int, default=0, help="episode e is seeded (seed, e)")
+    despot.add_argument("--reference", type=Path, default=None,
+                        help="a built reference DESPOT (its build folder) to run side by side")
+    despot.add_argument("--no-progress", action="store_true", help="no progress bars")
+    _json(despot)
+    despot.set_defaults(handler=_despot)
 
     vt = subcommand(kinds, "visuotactile", "smoother update and relinearisation times")
     vt.add_argument("--log", type=Path, default=None,
@@ -66,6 +83,25 @@ def _pomdp(args: argparse.Namespace) -> int:
     from experiments.pomdp_bench import run_pomdp_bench
 
     write_json(run_pomdp_bench(quick=args.quick, trial_rule=args.trial_rule), args.json)
+    return 0
+
+
+def _despot(args: argparse.Namespace) -> int:
+    from experiments.despot_bench import run_despot_bench
+    from planning.pomdp.problems import load_problem
+
+    if args.episodes < 2 or args.steps < 1 or args.scenarios < 1:
+        raise ValueError("--episodes must be >= 2, --steps and --scenarios >= 1")
+    if min(args.seconds_per_step) <= 0:
+        raise ValueError("--seconds-per-step must be > 0")
+    for problem in args.problem:  # a bad name or file fails before any episode runs
+        load_problem(problem)
+    if args.reference is not None and not args.reference.is_dir():
+        raise ValueError(f"--reference {args.reference}: not a directory")
+    write_json(run_despot_bench(args.problem, args.seconds_per_step, episodes=args.episodes,
+                                steps=args.steps, seed=args.seed, scenarios=args.scenarios,
+                                reference=args.reference, progress=not args.no_progress),
+               args.json)
     return 0
 
 

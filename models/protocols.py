@@ -5,6 +5,8 @@ hand-relative world (:class:`models.planar.world.PlanarWorld`) answers all three
 will a robot-configuration model or a lattice problem. Every method is batched over K
 states (particles or scenarios) and deterministic given pre-drawn uniforms, which is what
 makes a particle update reproducible from its seed and a DESPOT scenario replayable.
+The generative POMDP seam (for DESPOT) is the POMDP library's:
+:class:`planning.pomdp.generative.GenerativePOMDP`.
 
 Shapes: ``states (K, d)``; ``action`` one action (an index, or a vector such as a planar
 hand motion ``(dx m, dy m, dtheta rad)``); ``u (K, D)`` uniforms in [0, 1); observations
@@ -13,7 +15,6 @@ are arrays (for binary contact sensing ``(S,)`` bool for one, ``(K, S)`` for a b
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -58,38 +59,3 @@ class ContactObservationModel(ObservationModel, Protocol):
 @runtime_checkable
 class FilterModel(TransitionModel, ContactObservationModel, Protocol):
     """What the particle filters of :mod:`estimation.particles.filters` need."""
-
-
-@dataclass(frozen=True)
-class GenerativeStep:
-    """K scenarios stepped at once.
-
-    Attributes:
-        next_states: (K, d).
-        rewards: (K,).
-        observations: (K, ...) one observation per scenario.
-        terminal: (K,) bool, the scenario has ended (absorbing).
-    """
-
-    next_states: np.ndarray
-    rewards: np.ndarray
-    observations: np.ndarray
-    terminal: np.ndarray
-
-
-@runtime_checkable
-class GenerativeModel(Protocol):
-    """A generative POMDP (for DESPOT): the batched step with rewards and observations,
-    the observation likelihood for belief updates, and the initial belief."""
-
-    discount: float
-
-    def step(self, states: np.ndarray, action: int, u: np.ndarray) -> GenerativeStep:
-        """K scenarios under ``action``, deterministic given ``u`` (K, D)."""
-
-    def log_likelihood(self, observation: np.ndarray, states: np.ndarray,
-                       action: int) -> np.ndarray:
-        """(K,) ``log p(observation | state, action)``."""
-
-    def sample_initial(self, n: int, *, rng: np.random.Generator) -> np.ndarray:
-        """(n, d) states drawn from the initial belief."""

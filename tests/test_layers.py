@@ -3,7 +3,8 @@
 ``models <- estimation <- planning <- diagrams <- experiments <- cmanip``: a module may
 import its own layer and the layers to its left, never one to its right. Only
 ``diagrams/`` may import ``pydrake.systems``; the generic POMDP library
-(``planning/pomdp``) imports no model of ours; and no two modules import each other,
+(``planning/pomdp``) imports no model of ours (only itself and the planner seam,
+``planning.protocols``); and no two modules import each other,
 directly or round a longer loop. Imports inside functions count as much as those at the
 top: a lazy import is still a dependency. Each failure names the file and the line.
 """
@@ -68,9 +69,10 @@ def layer_violations(root: Path = ROOT) -> list[str]:
                 problems.append(f"{where}:{line}: imports {target}; only diagrams/ may "
                                 "define or use Drake systems")
             if name.startswith("planning.pomdp") and top in RANK and \
-                    not target.startswith("planning.pomdp"):
+                    not target.startswith("planning.pomdp") and target != "planning.protocols":
                 problems.append(f"{where}:{line}: the generic POMDP library imports "
-                                f"{target}; it may import only planning.pomdp")
+                                f"{target}; it may import only planning.pomdp and the "
+                                "planner seam, planning.protocols")
     return problems
 
 

@@ -119,8 +119,14 @@ ROCKS_7_8 = ((2, 0), (0, 1), (3, 1), (6, 3), (2, 4), (3, 4), (5, 5), (1, 6))
 
 
 def rock_sample(size: int = 7, rocks: tuple[tuple[int, int], ...] = ROCKS_7_8,
-                half_efficiency_distance: float = 20.0) -> TabularPOMDP:
-    """RockSample(size, len(rocks)); states are (x, y, rock qualities) plus "exit"."""
+                half_efficiency_distance: float = 20.0, *, wall_reward: float = 0.0,
+                empty_sample_reward: float = -10.0) -> TabularPOMDP:
+    """RockSample(size, len(rocks)); states are (x, y, rock qualities) plus "exit".
+
+    ``wall_reward``: of a move into a wall other than the exit (the robot stays);
+    ``empty_sample_reward``: of sampling a cell without a rock. The defaults are Smith and
+    Simmons'; the reference DESPOT's RockSample charges -100 for both
+    (:class:`planning.pomdp.rocksample.RockSample`)."""
     k = len(rocks)
     start = (0, size // 2)
     rock_at = {cell: i for i, cell in enumerate(rocks)}
@@ -150,6 +156,8 @@ def rock_sample(size: int = 7, rocks: tuple[tuple[int, int], ...] = ROCKS_7_8,
                 nx, ny = x + dx, y + dy
                 if 0 <= nx < size and 0 <= ny < size:
                     target = sid(nx, ny, bits)
+                else:
+                    R[s, a] = wall_reward
             elif name == "east":
                 if x + 1 < size:
                     target = sid(x + 1, y, bits)
@@ -158,7 +166,7 @@ def rock_sample(size: int = 7, rocks: tuple[tuple[int, int], ...] = ROCKS_7_8,
             elif name == "sample":
                 rock = rock_at.get((x, y))
                 if rock is None:
-                    R[s, a] = -10.0
+                    R[s, a] = empty_sample_reward
                 elif bits >> rock & 1:
                     R[s, a] = 10.0
                     target = sid(x, y, bits & ~(1 << rock))

@@ -1,0 +1,500 @@
+"""DESPOT: online POMDP planning over sampled scenarios (Somani, Ye, Hsu and Lee, NIPS 2013;
+Ye, Somani, Hsu and Lee, "DESPOT: Online POMDP Planning with Regularization", JAIR 2017).
+
+A *scenario* is a start state drawn from the belief and its own stream of uniforms, one
+``u`` per depth; stepping a scenario with the generative model
+(:class:`~planning.pomdp.generative.GenerativePOMDP`) is then deterministic, so the K
+scenarios (default 500) span a sparse belief tree (the DESPOT): a belief node holds the
+indices of the scenarios that reach it, each action node the scenarios' rewards, and each
+observation seen by at least one scenario a child.
+
+Bounds (JAIR sec. 4, with the node weight |Phi_b| / K and the discount gamma^Delta(b) folded
+in, so the root's bounds are the values of its policies):
+
+- lower ``l0(b) = gamma^Delta / K * sum_phi V_pi0(phi) - lambda``: the return of the model's
+  default policy, rolled out over all of the node's scenarios at once;
+- upper ``mu0(b) = gamma^Delta / K * sum_phi U(s_phi)``: the model's upper bound (e.g. the
+  MDP value), or one passed in;
+- backups ``l(b) = max(l0(b), max_a l(b, a))``, ``mu(b) = max(l0(b), max_a mu(b, a))`` with
+  ``x(b, a) = rho(b, a) + sum_z x(tau(b, a, z))`` and ``rho(b, a) = gamma^Delta / K *
+  sum_phi R(s_phi, a) - lambda`` (eq. 5 and Algorithm 4's BACKUP). Bounds that cross
+  (an upper bound below a rollout's return) are repaired (``mu = l``) and counted.
+
+Search (AR-DESPOT, Algorithm 3, the default): trials from the root take the action of
+largest upper bound, then the observation child of largest weighted excess uncertainty
+``E(b) = mu(b) - l(b) - xi |Phi_b| / K (mu(b0) - l(b0))`` (xi = 0.95), expand a leaf (all
+its actions' scenarios in one ``step`` call each, all its children's rollouts in one
+batch), stop at depth D (default 90; the node then keeps its default policy,
+MAKEDEFAULT) or when E < 0, and back up along the path. ``variant="r"`` is R-DESPOT
+within a budget: nodes are expanded breadth first, and the regularised policy is the one
+the same backup computes bottom-up (the dynamic programme of JAIR sec. 4.1). Either way
+the final policy is pruned where the default policy is at least as good (``l0(b) >= max_a
+l(b, a)``), and its size is reported.
+
+The budget is wall-clock time (the reference uses CPU time, ``clock()``), checked before
+every trial, so a decision overruns by at most one trial; the overrun is reported. The
+chosen action maximises the root's lower bound ``l(b0, a)``; with no expanded root (no
+time for a trial) or bounds that are equal or not finite, it is the default policy's action.
+Each decision builds a new tree and frees the last one (``reuse="none"``, default), or
+starts from the chosen action and received observation's subtree when it has at least
+``reuse_min_fraction`` of the scenarios (``reuse="subtree"``).
+"""
+
+from __future__ import annotations
+
+import gc
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from planning.pomdp.generative import GenerativePOMDP, action_array, rollout_kernel
+
+VARIANTS = ("ar", "r")
+CROSSING_TOLERANCE = 1e-9
+"""Crossings smaller than this are rounding, repaired but not counted."""
+REUSE = ("none", "subtree")
+
+
+@dataclass(frozen=True)
+class DespotSettings:
+    """Attributes:
+        scenarios: K, the sampled scenarios (JAIR: 500).
+        depth: D, the search depth (JAIR: 90).
+        xi: the excess-uncertainty fraction (JAIR: 0.95).
+        regularization: lambda, the cost per policy-tree node (0: DESPOT unregularised).
+        seconds: wall-clock budget per decision (s).
+        max_trials: also stop after this many trials (None: the time budget alone);
+            with a trial budget the search does not depend on the machine's speed.
+        variant: ``ar`` (anytime heuristic search) or ``r`` (breadth-first within the
+            budget, then the regularised dynamic programme).
+        gap_stop: stop when the root's bounds are within this (JAIR's epsilon_0).
+        reuse: ``none`` (a new tree per decision) or ``subtree`` (keep the child reached).
+        reuse_min_fraction: the reused subtree must hold at least this fraction of K.
+    """
+
+    scenarios: int = 500
+    depth: int = 90
+    xi: float = 0.95
+    regularization: float = 0.0
+    seconds: float = 1.0
+    max_trials: int | None = None
+    variant: str = "ar"
+    gap_stop: float = 1e-6
+    reuse: str = "none"
+    reuse_min_fraction: float = 0.2
+
+    def __post_init__(self):
+        if self.scenarios < 1 or self.depth < 1:
+            raise ValueError("scenarios and depth must be >= 1")
+        if not 0.0 <= self.xi <= 1.0:
+            raise ValueError(f"xi must be in [0, 1], got {self.xi}")
+        if self.regularization < 0 or self.seconds <= 0:
+            raise ValueError("regularization must be >= 0 and seconds > 0")
+        if self.max_trials is not None and self.max_trials < 0:
+            raise ValueError("max_trials must be >= 0 or None")
+        if self.variant not in VARIANTS:
+            raise ValueError(f"variant must be one of {VARIANTS}, got {self.variant!r}")
+        if self.reuse not in REUSE:
+            raise ValueError(f"reuse must be one of {REUSE}, got {self.reuse!r}")
+
+
+class _BeliefNode:
+    """A belief node: the scenarios that reach it (indices into the K), their states
+    (n, d) and terminal flags, its depth, its bounds and its action children."""
+
+    __slots__ = ("depth", "scenarios", "states", "terminal", "l0", "u0", "lower", "upper",
+                 "children")
+
+    def __init__(self, depth, scenarios, states, terminal):
+        self.depth = depth
+        self.scenarios = scenarios
+        self.states = states
+        self.terminal = terminal
+        self.children: list[_ActionNode] | None = None
+        self.l0 = self.u0 = self.lower = self.upper = 0.0
+
+
+class _ActionNode:
+    """An action node: its regularised weighted reward rho(b, a) and observation children."""
+
+    __slots__ = ("rho", "children", "lower", "upper")
+
+    def __init__(self, rho: float, children: dict):
+        self.rho = rho
+        self.children = children
+        self.lower = rho + sum(c.lower for c in children.values())
+        self.upper = rho + sum(c.upper for c in children.values())
+
+
+@dataclass(frozen=True)
+class DespotTree:
+    """What a search leaves: the root, the scenarios' uniforms (K, D + 1, U) and K.
+    Kept (in the planner's memory) only for subtree reuse."""
+
+    root: _BeliefNode
+    uniforms: np.ndarray
+    scenarios: int
+
+
+@dataclass(frozen=True)
+class DespotStats:
+    """One decision's search.
+
+    Attributes:
+        trials: trials run (AR) or expansions (R).
+        nodes: belief nodes in the tree.
+        depth_reached: deepest belief node.
+        lower, upper: the root's bounds (weighted, regularised).
+        action_lower, action_upper: (A,) every action's bounds at the root (nan where
+            the root was not expanded).
+        crossings_repaired: backups where the upper bound fell below the lower.
+        seconds: wall time of the search (s); overrun_ms: beyond the budget (ms, >= 0),
+            at most about ``trial_ms_max``, the longest trial (ms; the first one includes
+            building the root).
+        policy_size: belief nodes of the pruned regularised policy.
+        reused: whether the search started from the last decision's subtree.
+    """
+
+    trials: int
+    nodes: int
+    depth_reached: int
+    lower: float
+    upper: float
+    action_lower: tuple[float, ...]
+    action_upper: tuple[float, ...]
+    crossings_repaired: int
+    seconds: float
+    overrun_ms: float
+    trial_ms_max: float
+    policy_size: int
+    reused: bool
+
+
+class Despot:
+    """The DESPOT search over one generative model (see the module docstring).
+
+    Args:
+        model: the generative POMDP (its ``upper_bound`` and ``default_actions`` are the
+            default bounds).
+        settings: the search settings.
+        upper_bound: optional ``(states (K, d)) -> (K,)`` replacing the model's.
+        default_actions: optional ``(states (K, d)) -> (K,)`` rollout policy replacing
+            the model's (it may read only what the agent observes).
+    """
+
+    def __init__(self, model: GenerativePOMDP, settings: DespotSettings = DespotSettings(), *,
+                 upper_bound=None, default_actions=None):
+        self.model = model
+        self.settings = settings
+        self._upper = upper_bound or model.upper_bound
+        self._default = default_actions or model.default_actions
+        self._compiled_rollout = None if default_actions else rollout_kernel(model)
+        self._gamma = model.discount
+        self._actions = len(model.actions)
+
+    # -- one decision
+    def search(self, particles: np.ndarray, *, rng: np.random.Generator,
+               weights: np.ndarray | None = None,
+               previous: DespotTree | None = None) -> tuple[int, DespotStats, DespotTree]:
+        """Search from the belief ``particles`` (N, d) (optionally ``weights`` (N,)); or,
+        when ``previous`` is given and reusable, from its root. Returns the action, the
+        search statistics and the tree."""
+        s = self.settings
+        start = time.perf_counter()
+        self._crossings = 0
+        reused = previous is not None
+        if reused:
+            tree = previous
+        else:
+            tree = self._new_tree(particles, weights, rng)
+        self._uniforms, self._k = tree.uniforms, tree.scenarios
+        root = tree.root
+        deadline = start + s.seconds
+        trials, depth_reached = 0, self._deepest(root) if reused else 0
+        frontier = deque([(root,)])  # breadth-first queue of paths, for the R variant
+        trial_start, trial_max = start, 0.0
+        collecting = gc.isenabled()
+        gc.disable()  # the tree is acyclic: reference counts free it; see the docstring
+        try:
+            while (s.max_trials is None or trials < s.max_trials) and \
+                    time.perf_counter() < deadline and root.upper - root.lower > s.gap_stop:
+                if s.variant == "ar":
+                    path = self._trial(root)
+                else:
+                    path = self._expand_next(frontier)
+                    if path is None:
+                        break
+                depth_reached = max(depth_reached, path[-1].depth)
+                self._backup(path)
+                trials += 1
+                now = time.perf_counter()
+                trial_max = max(trial_max, now - trial_start)
+                trial_start = now
+        finally:
+            if collecting:
+                gc.enable()
+        elapsed = time.perf_counter() - start
+        action = self._best_action(root)
+        stats = DespotStats(
+            trials=trials, nodes=self._count(root), depth_reached=depth_reached,
+            lower=root.lower, upper=root.upper,
+            action_lower=self._action_bounds(root, "lower"),
+            action_upper=self._action_bounds(root, "upper"),
+            crossings_repaired=self._crossings, seconds=elapsed,
+            overrun_ms=max(0.0, (elapsed - s.seconds) * 1e3), trial_ms_max=trial_max * 1e3,
+            policy_size=self._policy_size(root), reused=reused)
+        return action, stats, tree
+
+    def subtree(self, tree: DespotTree, action: int, observation: int, *,
+                rng: np.random.Generator) -> DespotTree | None:
+        """The tree below ``action`` and ``observation`` as a tree of its own, when it
+        exists and holds at least ``reuse_min_fraction`` of the scenarios; else None.
+        Its bounds are recomputed for the new root (weights |Phi_b| / K', depths - 1),
+        and the scenarios' uniform streams move up one depth (the deepest drawn anew
+        from ``rng``)."""
+        root = tree.root
+        if root.children is None:
+            return None
+        child = root.children[action].children.get(int(observation))
+        if child is None or len(child.scenarios) < self.settings.reuse_min_fraction * \
+                tree.scenarios:
+            return None
+        k_new = len(child.scenarios)
+        scale = tree.scenarios / (k_new * self._gamma)
+        self._rescale(child, scale, shift=child.depth)
+        fresh = rng.random((tree.uniforms.shape[0], 1, tree.uniforms.shape[2]))
+        return DespotTree(child, np.concatenate([tree.uniforms[:, 1:], fresh], axis=1), k_new)
+
+    # -- the tree
+    def _new_tree(self, particles, weights, rng) -> DespotTree:
+        s = self.settings
+        particles = np.asarray(particles)
+        p = None if weights is None else np.asarray(weights, dtype=float) / np.sum(weights)
+        picks = rng.choice(len(particles), size=s.scenarios, p=p)
+        uniforms = rng.random((s.scenarios, s.depth + 1, self.model.uniforms_per_step))
+        self._uniforms, self._k = uniforms, s.scenarios
+        states = particles[picks]
+        root = _BeliefNode(0, np.arange(s.scenarios), states, self.model.is_terminal(states))
+        self._initialise([root])
+        return DespotTree(root, uniforms, s.scenarios)
+
+    def _initialise(self, nodes: list[_BeliefNode]) -> None:
+        """Bounds of new nodes: one batched rollout and one upper-bound call for all."""
+        states = np.concatenate([n.states for n in nodes])
+        scenarios = np.concatenate([n.scenarios for n in nodes])
+        terminal = np.concatenate([n.terminal for n in nodes])
+        depths = np.concatenate([np.full(len(n.scenarios), n.depth) for n in nodes])
+        offsets = np.cumsum([0] + [len(n.scenarios) for n in nodes])
+        values = self._rollout(states, scenarios, terminal, depths, offsets)
+        uppers = np.where(terminal, 0.0, self._upper(states))
+        value_sums = np.add.reduceat(values, offsets[:-1])
+        upper_sums = np.add.reduceat(uppers, offsets[:-1])
+        lam, max_depth = self.settings.regularization, self.settings.depth
+        for n, v, u in zip(nodes, value_sums.tolist(), upper_sums.tolist(), strict=True):
+            weight = self._gamma ** n.depth / self._k
+            n.l0 = weight * v - lam
+            n.u0 = n.l0 if n.terminal.all() else weight * u  # all ended: the value is known
+            if n.u0 < n.l0:
+                if n.l0 - n.u0 > CROSSING_TOLERANCE:
+                    self._crossings += 1
+                n.u0 = n.l0
+            n.lower = n.l0
+            n.upper = n.lower if n.depth >= max_depth else n.u0  # MAKEDEFAULT at depth D
+
+    def _rollout(self, states, scenarios, terminal, depths, offsets) -> np.ndarray:
+        """(M,) discounted returns of the default policy from each row until depth D or
+        the row's scenario ends. Rows ``offsets[j]:offsets[j + 1]`` are one node's
+        scenarios: the default policy acts on each node's set (it may be open-loop over
+        the node's belief, like the reference's particle-set policies). The model's
+        compiled rollout runs all nodes at once, if it has one and the default policy is
+        its own; otherwise each node's rows are stepped together, depth by depth."""
+        if self._compiled_rollout is not None:
+            return np.where(terminal, 0.0, self._compiled_rollout(
+                states, scenarios, depths, offsets, self._uniforms, self.settings.depth))
+        value = np.zeros(len(states))
+        for j in range(len(offsets) - 1):
+            rows = np.arange(offsets[j], offsets[j + 1])
+            node_states = states[rows].copy()
+            alive = ~terminal[rows]
+            depth, scale = int(depths[rows[0]]), 1.0
+            while alive.any() and depth < self.settings.depth:
+                live = np.flatnonzero(alive)
+                actions = action_array(self._default(node_states[live]), len(live))
+                step = self.model.step(node_states[live], actions,
+                                       self._uniforms[scenarios[rows[live]], depth])
+                value[rows[live]] += scale * step.rewards
+                node_states[live] = step.next_states
+                alive[live] = ~step.terminal
+                scale *= self._gamma
+                depth += 1
+        return value
+
+    def _expand(self, node: _BeliefNode) -> None:
+        """Every action's child nodes: one ``step`` call for all actions and all the
+        node's live scenarios (n x A rows), the children's bounds in one batch."""
+        live = ~node.terminal
+        n, count = int(live.sum()), self._actions
+        states = np.repeat(node.states[live], count, axis=0)
+        scenarios = np.repeat(node.scenarios[live], count)
+        actions = np.tile(np.arange(count), n)
+        step = self.model.step(states, actions, self._uniforms[scenarios, node.depth])
+        weight = self._gamma ** node.depth / self._k
+        lam = self.settings.regularization
+        rho = weight * np.bincount(actions, weights=step.rewards, minlength=count) - lam
+        key = actions * (int(step.observations.max(initial=0)) + 1) + step.observations
+        order = np.argsort(key, kind="stable")
+        codes, starts = np.unique(key[order], return_index=True)
+        children: list[dict] = [{} for _ in range(count)]
+        new = []
+        width = int(step.observations.max(initial=0)) + 1
+        for code, rows in zip(codes, np.split(order, starts[1:]), strict=True):
+            child = _BeliefNode(node.depth + 1, scenarios[rows], step.next_states[rows],
+                                step.terminal[rows])
+            children[int(code) // width][int(code) % width] = child
+            new.append(child)
+        if new:
+            self._initialise(new)
+        node.children = [_ActionNode(float(rho[a]), children[a]) for a in range(count)]
+
+    def _trial(self, root: _BeliefNode) -> list[_BeliefNode]:
+        """One AR-DESPOT trial (JAIR Algorithm 3); returns the path it took, root first."""
+        node, path = root, [root]
+        root_gap = root.upper - root.lower
+        xi = self.settings.xi
+        while node.depth < self.settings.depth and not node.terminal.all():
+            if node.children is None:
+                self._expand(node)
+            action = max(node.children, key=lambda q: q.upper)
+            if not action.children:
+                break
+            node = max(action.children.values(), key=lambda b: self._excess(b, root_gap, xi))
+            path.append(node)
+            if self._excess(node, root_gap, xi) < 0:
+                break
+        return path
+
+    def _excess(self, node: _BeliefNode, root_gap: float, xi: float) -> float:
+        return node.upper - node.lower - xi * len(node.scenarios) / self._k * root_gap
+
+    def _expand_next(self, frontier: deque) -> tuple[_BeliefNode, ...] | None:
+        """R-DESPOT within a budget: expand the oldest unexpanded node (breadth first);
+        returns its path from the root."""
+        while frontier:
+            path = frontier.popleft()
+            node = path[-1]
+            if node.depth >= self.settings.depth or node.terminal.all():
+                continue
+            self._expand(node)
+            for q in node.children:
+                frontier.extend((*path, child) for child in q.children.values())
+            return path
+        return None
+
+    def _backup(self, path) -> None:
+        """Bounds from the end of ``path`` up to the root (JAIR Algorithm 4's BACKUP)."""
+        for node in reversed(path):
+            if node.children:
+                for q in node.children:
+                    q.lower = q.rho + sum(c.lower for c in q.children.values())
+                    q.upper = q.rho + sum(c.upper for c in q.children.values())
+                node.lower = max(node.l0, max(q.lower for q in node.children))
+                if node.depth < self.settings.depth:
+                    node.upper = max(node.l0, max(q.upper for q in node.children))
+            if node.upper < node.lower:
+                if node.lower - node.upper > CROSSING_TOLERANCE:
+                    self._crossings += 1
+                node.upper = node.lower
+
+    def _rescale(self, node: _BeliefNode, scale: float, shift: int) -> None:
+        """Re-root a subtree: depths less ``shift``, and its bounds recomputed with the new
+        weights (each weighted sum times ``scale``; lambda stays per node)."""
+        lam = self.settings.regularization
+        stack = [node]
+        order = []
+        while stack:
+            b = stack.pop()
+            order.append(b)
+            b.depth -= shift
+            b.l0 = (b.l0 + lam) * scale - lam
+            b.u0 = b.u0 * scale if not b.terminal.all() else b.l0
+            if b.children:
+                for q in b.children:
+                    q.rho = (q.rho + lam) * scale - lam
+                    stack.extend(q.children.values())
+        for b in reversed(order):  # leaves first
+            b.lower, b.upper = b.l0, b.u0
+            if b.depth >= self.settings.depth:
+                b.upper = b.lower
+            if b.children:
+                for q in b.children:
+                    q.lower = q.rho + sum(c.lower for c in q.children.values())
+                    q.upper = q.rho + sum(c.upper for c in q.children.values())
+                b.lower = max(b.l0, max(q.lower for q in b.children))
+                if b.depth < self.settings.depth:
+                    b.upper = max(b.l0, max(q.upper for q in b.children))
+            b.upper = max(b.upper, b.lower)
+
+    # -- answers
+    def _best_action(self, root: _BeliefNode) -> int:
+        """The action of largest lower bound (ties: of largest upper bound); the default
+        policy's (the most frequent over the root's scenarios) when the root is not
+        expanded or its bounds are not finite."""
+        ranking = self.ranking(root)
+        if ranking is not None:
+            return ranking[0]
+        live = root.states[~root.terminal] if (~root.terminal).any() else root.states
+        actions = action_array(self._default(live), len(live))
+        return int(np.bincount(actions, minlength=self._actions).argmax())
+
+    def ranking(self, root: _BeliefNode) -> tuple[int, ...] | None:
+        """Every action, best first by (lower, upper) bound at the root; None when the
+        root is not expanded or a bound is not finite."""
+        if not root.children:
+            return None
+        lows = np.array([q.lower for q in root.children])
+        ups = np.array([q.upper for q in root.children])
+        if not (np.all(np.isfinite(lows)) and np.all(np.isfinite(ups))):
+            return None
+        return tuple(int(a) for a in np.lexsort((-ups, -lows)))
+
+    def _action_bounds(self, root: _BeliefNode, which: str) -> tuple[float, ...]:
+        if not root.children:
+            return (float("nan"),) * self._actions
+        return tuple(float(getattr(q, which)) for q in root.children)
+
+    def _policy_size(self, root: _BeliefNode) -> int:
+        """Belief nodes of the regularised policy, pruned where the default is as good."""
+        size, stack = 0, [root]
+        while stack:
+            b = stack.pop()
+            size += 1
+            if not b.children:
+                continue
+            best = max(b.children, key=lambda q: q.lower)
+            if best.lower > b.l0:
+                stack.extend(best.children.values())
+        return size
+
+    @staticmethod
+    def _count(root: _BeliefNode) -> int:
+        count, stack = 0, [root]
+        while stack:
+            b = stack.pop()
+            count += 1
+            if b.children:
+                for q in b.children:
+                    stack.extend(q.children.values())
+        return count
+
+    @staticmethod
+    def _deepest(root: _BeliefNode) -> int:
+        deepest, stack = 0, [root]
+        while stack:
+            b = stack.pop()
+            deepest = max(deepest, b.depth)
+            if b.children:
+                for q in b.children:
+                    stack.extend(q.children.values())
+        return deepest

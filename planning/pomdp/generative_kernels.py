@@ -1,0 +1,39 @@
+"""Compiled rollouts of the generative models (:mod:`planning.pomdp.generative`).
+
+DESPOT's lower bound rolls the default policy out from every new node's scenarios to the
+search depth; in numpy each depth costs one interpreter round trip per batch, which for
+deep, never-ending problems (Tiger: 90 steps) dominated the search (measured: 93 % of a
+1-s decision). These kernels run a whole rollout per scenario in one compiled loop,
+reading each scenario's own uniforms, so they are the same returns as the numpy loop.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def tabular_blind_rollout(states, scenarios, depths, uniforms, max_depth, discount, action,
+                          indptr, indices, cumulative, R, terminal):  # pragma: no cover
+    """(M,) discounted returns of repeating ``action`` from each row's state (M,) at its
+    depth (M,) to ``max_depth``, successors by inverse CDF over the CSR row of ``T[action]``
+    (``cumulative``: the running sum of its data) with ``uniforms[scenario, depth, 0]``."""
+    out = np.zeros(len(states))
+    for i in range(len(states)):
+        s = states[i]
+        value, scale = 0.0, 1.0
+        for t in range(depths[i], max_depth):
+            if terminal[s]:
+                break
+            value += scale * R[s, action]
+            start, stop = indptr[s], indptr[s + 1]
+            base = cumulative[start - 1] if start > 0 else 0.0
+            target = base + uniforms[scenarios[i], t, 0] * (cumulative[stop - 1] - base)
+            k = start
+            while k < stop - 1 and cumulative[k] <= target:
+                k += 1
+            s = indices[k]
+            scale *= discount
+        out[i] = value
+    return out

@@ -1,0 +1,180 @@
+"""DESPOT: the right first action and value where they are known, bounds that never cross,
+a budget kept under a slow model, robust answers at degenerate roots, subtree reuse, and
+memory that stays flat over a long run."""
+
+import time
+
+import numpy as np
+import pytest
+
+from planning.pomdp.benchmarks import tiger
+from planning.pomdp.despot import Despot, DespotSettings
+from planning.pomdp.generative import TabularGenerative
+from planning.pomdp.online import DespotPlanner, run_episode, update_particles
+from planning.pomdp.rocksample import RockSample
+from planning.pomdp.tabular import belief_update
+from planning.pomdp.tag import Tag
+from planning.protocols import Planner
+
+
+def finite_horizon_value(pomdp, belief, depth):
+    """The exact optimal value of ``depth`` steps from ``belief``, by expectimax."""
+    if depth == 0:
+        return 0.0
+    best = -np.inf
+    for a in range(len(pomdp.actions)):
+        value = float(belief @ pomdp.R[:, a])
+        for o in range(len(pomdp.observations)):
+            posterior, p = belief_update(pomdp, belief, a, o)
+            if p > 1e-12:
+                value += pomdp.discount * p * finite_horizon_value(pomdp, posterior, depth - 1)
+        best = max(best, value)
+    return best
+
+
+def walk(node):
+    """Every belief node below ``node``."""
+    stack = [node]
+    while stack:
+        b = stack.pop()
+        yield b
+        for q in b.children or ():
+            stack.extend(q.children.values())
+
+
+@pytest.fixture(scope="module")
+def tiger_model():
+    return TabularGenerative(tiger())
+
+
+def test_tiger_first_action_is_to_listen(tiger_model):
+    rng = np.random.default_rng(0)
+    planner = DespotPlanner(tiger_model, DespotSettings(scenarios=500, depth=30,
+                                                        max_trials=300, seconds=60))
+    assert isinstance(planner, Planner)
+    result = planner.plan(tiger_model.sample_initial(1000, rng=rng), rng=rng)
+    assert tiger_model.actions[result.action] == "listen"
+    assert result.ranking[0] == result.action and sorted(result.ranking) == [0, 1, 2]
+    assert result.stats["action_lower"][0] == max(result.stats["action_lower"])
+
+
+@pytest.mark.parametrize("depth", [2, 4])
+def test_a_searched_out_tree_has_the_exact_finite_horizon_value(tiger_model, depth):
+    """Depth-limited Tiger: once the search closes the gap, the root's bound is the best
+    depth-step policy's value on the scenarios, which K = 4000 puts near the exact one."""
+    pomdp = tiger_model.pomdp
+    exact = finite_horizon_value(pomdp, pomdp.initial, depth)
+    rng = np.random.default_rng(1)
+    search = Despot(tiger_model, DespotSettings(scenarios=4000, depth=depth, seconds=60,
+                                                max_trials=10_000))
+    action, stats, _ = search.search(tiger_model.sample_initial(4000, rng=rng), rng=rng)
+    assert stats.upper - stats.lower < 1e-6
+    assert stats.lower == pytest.approx(exact, abs=0.6)
+    assert pomdp.actions[action] == "listen"
+
+
+@pytest.mark.parametrize("variant, regularization", [("ar", 0.0), ("ar", 0.1), ("r", 0.0)])
+@pytest.mark.parametrize("model", [Tag(), RockSample(7, 8)], ids=["tag", "rocksample"])
+def test_bounds_never_cross_after_the_backups(model, variant, regularization):
+    rng = np.random.default_rng(2)
+    search = Despot(model, DespotSettings(scenarios=200, max_trials=60, seconds=60,
+                                          variant=variant, regularization=regularization))
+    _, stats, tree = search.search(model.sample_initial(500, rng=rng), rng=rng)
+    nodes = list(walk(tree.root))
+    assert len(nodes) == stats.nodes > 1
+    for b in nodes:
+        assert b.lower <= b.upper
+        assert b.lower >= b.l0 - 1e-12
+        for q in b.children or ():
+            assert q.lower <= q.upper + 1e-9
+    assert stats.lower <= stats.upper
+    assert stats.policy_size <= stats.nodes
+
+
+class SlowTag(Tag):
+    """Tag whose step takes at least 3 ms: a model slower than the budget's grain."""
+
+    def step(self, states, actions, u):
+        time.sleep(0.003)
+        return super().step(states, actions, u)
+
+
+def test_the_wall_clock_budget_is_kept_to_within_one_trial():
+    model = SlowTag()
+    rng = np.random.default_rng(3)
+    search = Despot(model, DespotSettings(seconds=0.15))
+    _, stats, _ = search.search(model.sample_initial(500, rng=rng), rng=rng)
+    assert stats.trials >= 1
+    assert stats.seconds <= 0.15 + stats.trial_ms_max / 1e3 + 0.005
+    assert stats.overrun_ms == pytest.approx(max(0.0, (stats.seconds - 0.15) * 1e3))
+
+
+def test_degenerate_roots_still_give_the_default_policys_action(tiger_model):
+    rng = np.random.default_rng(4)
+    particles = tiger_model.sample_initial(100, rng=rng)
+    no_time = Despot(tiger_model, DespotSettings(max_trials=0))
+    action, stats, _ = no_time.search(particles, rng=rng)
+    assert stats.trials == 0 and action == tiger_model.default_actions(particles[:1])[0]
+    infinite = Despot(tiger_model, DespotSettings(max_trials=5),
+                      upper_bound=lambda states: np.full(len(states), np.inf))
+    action, stats, _ = infinite.search(particles, rng=rng)
+    assert action in (0, 1, 2)
+
+
+def test_terminal_states_end_the_search_and_the_episode():
+    model = RockSample(5, 3)
+    exited = np.array([[5, 2, 0]] * 10)
+    search = Despot(model, DespotSettings(max_trials=10))
+    _, stats, tree = search.search(exited, rng=np.random.default_rng(5))
+    assert tree.root.children is None and stats.lower == stats.upper == 0.0
+    episode = run_episode(model, DespotPlanner(model, DespotSettings(scenarios=100,
+                                                                     max_trials=20)),
+                          rng=np.random.default_rng(6), steps=60, particles=200)
+    assert episode.steps < 60  # it exits
+
+
+def test_subtree_reuse_rescales_the_kept_tree():
+    model = Tag()
+    planner = DespotPlanner(model, DespotSettings(scenarios=300, max_trials=40, seconds=60,
+                                                  reuse="subtree", reuse_min_fraction=0.0))
+    rng = np.random.default_rng(7)
+    belief = model.sample_initial(500, rng=rng)
+    first = planner.plan(belief, rng=rng)
+    state = model.sample_initial(1, rng=rng)
+    step = model.step(state, first.action, rng.random((1, 1)))
+    observation = int(step.observations[0])
+    belief, _ = update_particles(model, belief, first.action, observation, rng=rng)
+    second = planner.plan(belief, rng=rng, memory=first.memory, observation=observation)
+    assert second.stats["reused"]
+    root = second.memory.tree.root
+    assert root.depth == 0 and len(root.scenarios) == second.memory.tree.scenarios
+    for b in walk(root):
+        assert b.lower <= b.upper + 1e-12
+
+
+def test_the_belief_recovers_when_no_particle_explains_the_observation():
+    model = Tag()
+    rng = np.random.default_rng(8)
+    particles = np.array([[0, 5]] * 50)  # robot in cell 0: "robot at 20" is impossible
+    updated, recovered = update_particles(model, particles, 4, 20, rng=rng)
+    assert recovered and updated.shape == particles.shape
+
+
+@pytest.mark.slow
+def test_memory_stays_flat_over_a_thousand_decisions():
+    import tracemalloc
+
+    model = Tag()
+    planner = DespotPlanner(model, DespotSettings(scenarios=200, max_trials=15, seconds=60))
+    rng = np.random.default_rng(9)
+    tracemalloc.start()
+    sizes = []
+    decisions = 0
+    while decisions < 1000:
+        episode = run_episode(model, planner, rng=rng, steps=90, particles=300)
+        decisions += episode.steps
+        sizes.append((decisions, tracemalloc.get_traced_memory()[0]))
+    tracemalloc.stop()
+    early = np.median([m for d, m in sizes if 100 <= d <= 300])
+    late = np.median([m for d, m in sizes if d >= 800])
+    assert (late - early) / 1e6 < 2.0  # MB over some 700 decisions
