@@ -45,13 +45,15 @@ from __future__ import annotations
 import gc
 import time
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from planning.pomdp.despot_kernels import GROW, ArrayTree, make_core
 from planning.pomdp.generative import GenerativePOMDP, action_array, rollout_kernel
 
 VARIANTS = ("ar", "r")
+ENGINES = ("auto", "compiled", "python")
 CROSSING_TOLERANCE = 1e-9
 """Crossings smaller than this are rounding, repaired but not counted."""
 REUSE = ("none", "subtree")
@@ -72,6 +74,9 @@ class DespotSettings:
         gap_stop: stop when the root's bounds are within this (JAIR's epsilon_0).
         reuse: ``none`` (a new tree per decision) or ``subtree`` (keep the child reached).
         reuse_min_fraction: the reused subtree must hold at least this fraction of K.
+        engine: ``compiled`` (the search in :mod:`planning.pomdp.despot_kernels`, for AR
+            without reuse, on models with kernels), ``python`` (this module's; every
+            variant and option), or ``auto`` (compiled where it applies).
     """
 
     scenarios: int = 500
@@ -84,6 +89,7 @@ class DespotSettings:
     gap_stop: float = 1e-6
     reuse: str = "none"
     reuse_min_fraction: float = 0.2
+    engine: str = "auto"
 
     def __post_init__(self):
         if self.scenarios < 1 or self.depth < 1:
@@ -98,6 +104,18 @@ class DespotSettings:
             raise ValueError(f"variant must be one of {VARIANTS}, got {self.variant!r}")
         if self.reuse not in REUSE:
             raise ValueError(f"reuse must be one of {REUSE}, got {self.reuse!r}")
+        if self.engine not in ENGINES:
+            raise ValueError(f"engine must be one of {ENGINES}, got {self.engine!r}")
+
+
+_CORES: dict = {}
+
+
+def compiled_core(functions: tuple):
+    """The compiled trial for a model's kernel functions, built once per process."""
+    if functions not in _CORES:
+        _CORES[functions] = make_core(*functions)
+    return _CORES[functions]
 
 
 class _BeliefNode:
@@ -191,8 +209,23 @@ class Despot:
         self._upper = upper_bound or model.upper_bound
         self._default = default_actions or model.default_actions
         self._compiled_rollout = None if default_actions else rollout_kernel(model)
+        kernels = getattr(model, "kernels", None)
+        kernels = kernels() if kernels is not None and not (upper_bound or default_actions) \
+            else None
+        compilable = kernels is not None and settings.variant == "ar" and \
+            settings.reuse == "none"
+        if settings.engine == "compiled" and not compilable:
+            raise ValueError("the compiled engine needs a model with kernels, its own "
+                             "bounds, variant 'ar' and reuse 'none'")
+        self._core = None
+        self._workspace: ArrayTree | None = None  # the compiled tree's arrays, reused
+        if compilable and settings.engine != "python":
+            functions, self._kernel_params = kernels
+            self._core = compiled_core(functions)
         self._gamma = model.discount
         self._actions = len(model.actions)
+        if self._core is not None:
+            self._warm_up()
 
     # -- one decision
     def search(self, particles: np.ndarray, *, rng: np.random.Generator,
@@ -201,6 +234,8 @@ class Despot:
         """Search from the belief ``particles`` (N, d) (optionally ``weights`` (N,)); or,
         when ``previous`` is given and reusable, from its root. Returns the action, the
         search statistics and the tree."""
+        if self._core is not None:
+            return self._search_compiled(particles, weights, rng)
         s = self.settings
         start = time.perf_counter()
         self._crossings = 0
@@ -246,6 +281,127 @@ class Despot:
             overrun_ms=max(0.0, (elapsed - s.seconds) * 1e3), trial_ms_max=trial_max * 1e3,
             policy_size=self._policy_size(root), reused=reused)
         return action, stats, tree
+
+    def _warm_up(self) -> None:
+        """Compile the core now (a few seconds once per process and model), with a
+        one-trial search, rather than inside the first decision's budget."""
+        settings = self.settings
+        self.settings = replace(settings, scenarios=2, depth=2, max_trials=1)
+        try:
+            rng = np.random.default_rng(0)
+            self._search_compiled(self.model.sample_initial(2, rng=rng), None, rng)
+        finally:
+            self.settings = settings
+
+    def _search_compiled(self, particles, weights, rng) -> tuple[int, DespotStats, DespotTree]:
+        """:meth:`search` on the compiled engine (AR-DESPOT, a new tree). The tree's arrays
+        are a workspace kept between searches (grown as needed, never shrunk), so memory
+        stays flat over a long run and a decision does not pay for allocating it; the
+        returned tree is valid until the next search."""
+        s = self.settings
+        start = time.perf_counter()
+        particles = np.asarray(particles)
+        p = None if weights is None else np.asarray(weights, dtype=float) / np.sum(weights)
+        picks = rng.choice(len(particles), size=s.scenarios, p=p)
+        uniforms = rng.random((s.scenarios, s.depth + 1, self.model.uniforms_per_step))
+        states = particles[picks]
+        tree = self._workspace
+        if tree is None or tree.states.shape[1] != states.shape[1]:
+            tree = self._workspace = ArrayTree(states.shape[1], self._actions,
+                                               capacity=64 * max(1024, s.scenarios))
+        tree.scen[:s.scenarios] = np.arange(s.scenarios)
+        tree.states[:s.scenarios] = states
+        tree.term[:s.scenarios] = self.model.is_terminal(states)
+        tree.counts[:] = (1, 0, 0, s.scenarios)
+        tree.depth[0], tree.start[0], tree.count[0] = 0, 0, s.scenarios
+        tree.first_action[0] = -1
+        ended = bool(tree.term[:s.scenarios].all())
+        self._uniforms, self._k = uniforms, s.scenarios
+        live = ~tree.term[:s.scenarios]
+        value = float(self._rollout(states, np.arange(s.scenarios), ~live,
+                                    np.zeros(s.scenarios, dtype=np.int64),
+                                    np.array([0, s.scenarios])).sum())
+        bound = float(np.where(live, self._upper(states), 0.0).sum()) if live.any() else 0.0
+        lam = s.regularization
+        tree.l0[0] = value / s.scenarios - lam
+        tree.u0[0] = tree.l0[0] if ended else max(bound / s.scenarios, tree.l0[0])
+        tree.lower[0], tree.upper[0] = tree.l0[0], tree.u0[0]
+        crossings = np.zeros(1, dtype=np.int64)
+        path = np.zeros(s.depth + 2, dtype=np.int64)
+        deadline = start + s.seconds
+        trials, depth_reached = 0, 0
+        trial_start, trial_max = start, 0.0
+        grow_after = False
+        collecting = gc.isenabled()
+        gc.disable()
+        try:
+            while (s.max_trials is None or trials < s.max_trials) and \
+                    time.perf_counter() < deadline and \
+                    tree.upper[0] - tree.lower[0] > s.gap_stop:
+                arrays, pool = tree.as_tuples()
+                length = self._core(0, arrays, pool, tree.counts, uniforms,
+                                    self._kernel_params, self._actions, s.depth, self._gamma,
+                                    lam, float(s.scenarios), s.xi, crossings, path)
+                if length == GROW:  # out of room: grow now, or after the search when
+                    if time.perf_counter() - start > 0.5 * s.seconds:  # growing late
+                        grow_after = True  # would overrun the budget (copying the pool)
+                        break
+                    tree.grow(s.scenarios * self._actions)
+                    continue
+                depth_reached = max(depth_reached, int(tree.depth[path[length - 1]]))
+                trials += 1
+                now = time.perf_counter()
+                trial_max = max(trial_max, now - trial_start)
+                trial_start = now
+        finally:
+            if collecting:
+                gc.enable()
+        elapsed = time.perf_counter() - start
+        self._crossings = int(crossings[0])
+        if grow_after:  # for the next decision, outside this one's search budget
+            tree.grow(s.scenarios * self._actions)
+        ranking = self._array_ranking(tree)
+        if ranking is not None:
+            action = ranking[0]
+        else:
+            actions = action_array(self._default(states[live] if live.any() else states),
+                                   int(live.sum()) if live.any() else len(states))
+            action = int(np.bincount(actions, minlength=self._actions).argmax())
+        qs = tree.action_range(0)
+        nan = (float("nan"),) * self._actions
+        stats = DespotStats(
+            trials=trials, nodes=int(tree.counts[0]), depth_reached=depth_reached,
+            lower=float(tree.lower[0]), upper=float(tree.upper[0]),
+            action_lower=tuple(float(tree.q_lower[q]) for q in qs) or nan,
+            action_upper=tuple(float(tree.q_upper[q]) for q in qs) or nan,
+            crossings_repaired=self._crossings, seconds=elapsed,
+            overrun_ms=max(0.0, (elapsed - s.seconds) * 1e3), trial_ms_max=trial_max * 1e3,
+            policy_size=self._array_policy_size(tree), reused=False)
+        return action, stats, DespotTree(tree, uniforms, s.scenarios)
+
+    def _array_ranking(self, tree: ArrayTree) -> tuple[int, ...] | None:
+        qs = tree.action_range(0)
+        if not qs:
+            return None
+        lows, ups = tree.q_lower[qs.start:qs.stop], tree.q_upper[qs.start:qs.stop]
+        if not (np.all(np.isfinite(lows)) and np.all(np.isfinite(ups))):
+            return None
+        return tuple(int(a) for a in np.lexsort((-ups, -lows)))
+
+    def _array_policy_size(self, tree: ArrayTree) -> int:
+        size, stack = 0, [0]
+        while stack:
+            b = stack.pop()
+            size += 1
+            qs = tree.action_range(b)
+            if not qs:
+                continue
+            best = max(qs, key=lambda q: tree.q_lower[q])
+            if tree.q_lower[best] > tree.l0[b]:
+                first = int(tree.q_child_start[best])
+                stack.extend(int(c) for c in
+                             tree.child_node[first:first + tree.q_child_count[best]])
+        return size
 
     def subtree(self, tree: DespotTree, action: int, observation: int, *,
                 rng: np.random.Generator) -> DespotTree | None:
@@ -448,9 +604,11 @@ class Despot:
         actions = action_array(self._default(live), len(live))
         return int(np.bincount(actions, minlength=self._actions).argmax())
 
-    def ranking(self, root: _BeliefNode) -> tuple[int, ...] | None:
+    def ranking(self, root) -> tuple[int, ...] | None:
         """Every action, best first by (lower, upper) bound at the root; None when the
         root is not expanded or a bound is not finite."""
+        if isinstance(root, ArrayTree):
+            return self._array_ranking(root)
         if not root.children:
             return None
         lows = np.array([q.lower for q in root.children])

@@ -24,7 +24,12 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from planning.pomdp.generative_kernels import tabular_blind_rollout
+from planning.pomdp.generative_kernels import (
+    tabular_blind_rollout,
+    tabular_rollout,
+    tabular_step,
+    tabular_upper,
+)
 from planning.pomdp.qmdp import solve_mdp
 from planning.pomdp.tabular import TabularPOMDP
 
@@ -191,6 +196,19 @@ class TabularGenerative:
 
     def default_actions(self, states: np.ndarray) -> np.ndarray:
         return np.full(len(states), self._blind, dtype=np.int64)
+
+    def kernels(self):
+        """The compiled DESPOT's kernels (:func:`planning.pomdp.despot_kernels.make_core`)
+        and their parameters: the CSR rows of every T[a] stacked (padded) per action."""
+        width = max(len(indices) for _, indices, _ in self._successors)
+        indptr = np.stack([ip for ip, _, _ in self._successors])
+        indices = np.zeros((len(self.actions), width), dtype=np.int64)
+        cumulative = np.zeros((len(self.actions), width))
+        for a, (_, idx, cum) in enumerate(self._successors):
+            indices[a, :len(idx)], cumulative[a, :len(cum)] = idx, cum
+        params = (indptr.astype(np.int64), indices, cumulative, self._cum_z, self.pomdp.R,
+                  self._terminal, self._v, int(self._blind))
+        return (tabular_step, tabular_upper, tabular_rollout), params
 
     def rollout(self, states, scenarios, depths, offsets, uniforms, max_depth) -> np.ndarray:
         """The blind policy's returns, compiled (see :func:`rollout_kernel`)."""

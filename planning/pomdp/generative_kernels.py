@@ -37,3 +37,57 @@ def tabular_blind_rollout(states, scenarios, depths, uniforms, max_depth, discou
             scale *= discount
         out[i] = value
     return out
+
+
+@numba.njit
+def tabular_step(params, state, action, u, out):  # pragma: no cover (compiled)
+    """One scenario of :class:`~planning.pomdp.generative.TabularGenerative` (the kernel
+    of the compiled DESPOT; see :func:`planning.pomdp.despot_kernels.make_core`)."""
+    indptr, indices, cumulative, cum_z, R, terminal, values, blind = params
+    s = int(state[0])
+    if terminal[s]:
+        out[0] = s
+        return 0.0, 0, True
+    start, stop = indptr[action, s], indptr[action, s + 1]
+    base = cumulative[action, start - 1] if start > 0 else 0.0
+    target = base + u[0] * (cumulative[action, stop - 1] - base)
+    k = start
+    while k < stop - 1 and cumulative[action, k] <= target:
+        k += 1
+    nxt = indices[action, k]
+    o = 0
+    while o < cum_z.shape[2] - 1 and u[1] >= cum_z[action, nxt, o]:
+        o += 1
+    out[0] = nxt
+    return R[s, action], o, terminal[nxt]
+
+
+@numba.njit
+def tabular_upper(params, state):  # pragma: no cover (compiled)
+    return params[6][int(state[0])]
+
+
+@numba.njit
+def tabular_rollout(params, states, scenarios, terminal_rows, depth, uniforms, max_depth,
+                    discount):  # pragma: no cover (compiled)
+    """The blind policy's returns over one node's scenarios, summed."""
+    indptr, indices, cumulative, cum_z, R, terminal, values, blind = params
+    total = 0.0
+    for i in range(len(states)):
+        if terminal_rows[i]:
+            continue
+        s = int(states[i, 0])
+        scale = 1.0
+        for t in range(depth, max_depth):
+            if terminal[s]:
+                break
+            total += scale * R[s, blind]
+            start, stop = indptr[blind, s], indptr[blind, s + 1]
+            base = cumulative[blind, start - 1] if start > 0 else 0.0
+            target = base + uniforms[scenarios[i], t, 0] * (cumulative[blind, stop - 1] - base)
+            k = start
+            while k < stop - 1 and cumulative[blind, k] <= target:
+                k += 1
+            s = indices[blind, k]
+            scale *= discount
+    return total

@@ -23,6 +23,7 @@ to the exit, whose return is 10 gamma^(n - 1 - x) in closed form.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from planning.pomdp.benchmarks import ROCKS_7_8
@@ -77,6 +78,12 @@ class RockSample:
         self._rock_at = np.full((size, size), -1, dtype=np.int64)
         self._rock_at[self.rocks[:, 0], self.rocks[:, 1]] = np.arange(rocks)
         self._from_rock = full_information_values(self.rocks, size, self.discount)
+        self._table = None
+        if size * size * 2 ** rocks <= 2 ** 23:
+            x, y, bits = np.meshgrid(np.arange(size), np.arange(size), np.arange(2 ** rocks),
+                                     indexing="ij")
+            self._table = self._full_information(x.ravel(), y.ravel(), bits.ravel()).reshape(
+                x.shape)
 
     # -- the model
     def step(self, states: np.ndarray, actions, u: np.ndarray) -> GenerativeStep:
@@ -149,8 +156,15 @@ class RockSample:
 
     # -- bounds
     def upper_bound(self, states: np.ndarray) -> np.ndarray:
-        """The value with every rock's quality known (see :func:`full_information_values`)."""
-        x, y, bits = states[:, 0], states[:, 1], states[:, 2]
+        """The value with every rock's quality known (see :func:`full_information_values`);
+        a table lookup when the table (n^2 2^k values) is at most 2^23 entries."""
+        if self._table is not None:
+            x = np.minimum(states[:, 0], self.size - 1)
+            return np.where(states[:, 0] >= self.size, 0.0,
+                            self._table[x, states[:, 1], states[:, 2]])
+        return self._full_information(states[:, 0], states[:, 1], states[:, 2])
+
+    def _full_information(self, x, y, bits) -> np.ndarray:
         gamma, n = self.discount, self.size
         best = 10.0 * gamma ** np.maximum(n - 1 - x, 0)
         for i, (rx, ry) in enumerate(self.rocks):
@@ -159,6 +173,15 @@ class RockSample:
             rest = self._from_rock[i, bits & ~(1 << i)]
             best = np.where(good, np.maximum(best, gamma ** d * (10.0 + gamma * rest)), best)
         return np.where(x >= n, 0.0, best)
+
+    def kernels(self):
+        """The compiled DESPOT's kernels and their parameters (only with the table of the
+        upper bound: see :meth:`upper_bound`)."""
+        if self._table is None:
+            return None
+        return (rocksample_step, rocksample_upper, rocksample_rollout), (
+            self.size, self.rocks, self._rock_at, float(self.illegal_reward),
+            float(self.half_efficiency_distance), self._table)
 
     def default_actions(self, states: np.ndarray) -> np.ndarray:
         """East, to the exit (the reference's default lower bound)."""
@@ -170,6 +193,71 @@ class RockSample:
         steps = self.size - 1 - states[:, 0]
         reached = (states[:, 0] < self.size) & (depths + steps < max_depth)
         return np.where(reached, 10.0 * self.discount ** np.maximum(steps, 0), 0.0)
+
+
+@numba.njit
+def rocksample_step(params, state, action, u, out):  # pragma: no cover (compiled)
+    """One scenario of :meth:`RockSample.step`."""
+    size, rocks, rock_at, illegal, d0, table = params
+    x, y, bits = int(state[0]), int(state[1]), int(state[2])
+    out[0], out[1], out[2] = x, y, bits
+    if x >= size:
+        return 0.0, NONE, True
+    if action == NORTH:
+        if y + 1 < size:
+            out[1] = y + 1
+            return 0.0, NONE, False
+        return illegal, NONE, False
+    if action == SOUTH:
+        if y - 1 >= 0:
+            out[1] = y - 1
+            return 0.0, NONE, False
+        return illegal, NONE, False
+    if action == WEST:
+        if x - 1 >= 0:
+            out[0] = x - 1
+            return 0.0, NONE, False
+        return illegal, NONE, False
+    if action == EAST:
+        out[0] = x + 1
+        if x + 1 >= size:
+            return 10.0, NONE, True
+        return 0.0, NONE, False
+    if action == SAMPLE:
+        rock = rock_at[x, y]
+        if rock < 0:
+            return illegal, NONE, False
+        good = (bits >> rock) & 1
+        out[2] = bits & ~(1 << rock)
+        return (10.0 if good else -10.0), NONE, False
+    rock = action - SAMPLE - 1
+    distance = np.hypot(x - rocks[rock, 0], y - rocks[rock, 1])
+    efficiency = (1.0 + 2.0 ** (-distance / d0)) / 2.0
+    good = (bits >> rock) & 1 == 1
+    correct = u[0] < efficiency
+    return 0.0, (GOOD if good == correct else BAD), False
+
+
+@numba.njit
+def rocksample_upper(params, state):  # pragma: no cover (compiled)
+    table = params[5]
+    return table[int(state[0]), int(state[1]), int(state[2])]
+
+
+@numba.njit
+def rocksample_rollout(params, states, scenarios, terminal_rows, depth, uniforms, max_depth,
+                       discount):  # pragma: no cover (compiled)
+    """The east policy's returns over one node's scenarios, summed (closed form)."""
+    size = params[0]
+    total = 0.0
+    for i in range(len(states)):
+        x = int(states[i, 0])
+        if terminal_rows[i] or x >= size:
+            continue
+        steps = size - 1 - x
+        if depth + steps < max_depth:
+            total += 10.0 * discount ** steps
+    return total
 
 
 def full_information_values(rocks: np.ndarray, size: int, gamma: float) -> np.ndarray:

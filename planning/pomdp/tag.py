@@ -116,6 +116,60 @@ class Tag:
                            self._opp_cum, self._mdp_action, self.cells)
 
 
+    def kernels(self):
+        """The compiled DESPOT's kernels and their parameters
+        (:func:`planning.pomdp.despot_kernels.make_core`)."""
+        return (tag_step, tag_upper, tag_node_rollout), (
+            self._move, self._opp_next, self._opp_cum, self._mdp_action, self._value,
+            self.cells)
+
+
+@numba.njit
+def tag_step(params, state, action, u, out):  # pragma: no cover (compiled)
+    """One scenario of :meth:`Tag.step`."""
+    move, opp_next, opp_cum, mdp_action, value, cells = params
+    r, o = int(state[0]), int(state[1])
+    if o == cells:
+        out[0], out[1] = r, o
+        return 0.0, r, True
+    if action == TAG_ACTION and r == o:
+        out[0], out[1] = r, cells
+        return 10.0, r, True
+    reward = -10.0 if action == TAG_ACTION else -1.0
+    new_r = move[r, min(action, TAG_ACTION)]
+    k = 0
+    while k < opp_cum.shape[2] - 1 and u[0] >= opp_cum[r, o, k]:
+        k += 1
+    new_o = opp_next[r, o, k]
+    out[0], out[1] = new_r, new_o
+    return reward, (cells if new_o == new_r else new_r), False
+
+
+@numba.njit
+def tag_upper(params, state):  # pragma: no cover (compiled)
+    return params[4][int(state[0]), int(state[1])]
+
+
+@numba.njit
+def tag_node_rollout(params, states, scenarios, terminal_rows, depth, uniforms, max_depth,
+                     discount):  # pragma: no cover (compiled)
+    """:func:`tag_rollout` of one node, summed over its scenarios."""
+    move, opp_next, opp_cum, mdp_action, value, cells = params
+    n = len(states)
+    as_int = np.empty((n, 2), dtype=np.int64)
+    for i in range(n):
+        as_int[i, 0], as_int[i, 1] = int(states[i, 0]), int(states[i, 1])
+    offsets = np.array([0, n])
+    depths = np.full(n, depth)
+    returns = tag_rollout(as_int, scenarios, depths, offsets, uniforms, max_depth, discount,
+                          move, opp_next, opp_cum, mdp_action, cells)
+    total = 0.0
+    for i in range(n):
+        if not terminal_rows[i]:
+            total += returns[i]
+    return total
+
+
 @numba.njit(cache=True)
 def tag_rollout(states, scenarios, depths, offsets, uniforms, max_depth, discount, move,
                 opp_next, opp_cum, mdp_action, cells):  # pragma: no cover (compiled)
