@@ -26,12 +26,16 @@ import numpy as np
 
 from planning.pomdp.generative_kernels import (
     tabular_blind_rollout,
+    tabular_qmdp_rollout,
+    tabular_qmdp_rollouts,
     tabular_rollout,
     tabular_step,
     tabular_upper,
 )
 from planning.pomdp.qmdp import solve_mdp
 from planning.pomdp.tabular import TabularPOMDP
+
+DEFAULT_POLICIES = ("blind", "qmdp")
 
 
 @dataclass(frozen=True)
@@ -121,14 +125,21 @@ class TabularGenerative:
     ``u[:, 0]`` draws the successor by inverse CDF over the row ``T[a][s]``, ``u[:, 1]`` the
     observation over ``Z[a, s']``. A state is terminal if every action keeps it with
     probability 1 at zero reward (Tag's "tagged", RockSample's "exit"). The upper bound is
-    the MDP value (:func:`~planning.pomdp.qmdp.solve_mdp`); the default policy is the best
-    blind policy (one action forever, the best from the initial belief), which observes
-    nothing and so is a true lower bound.
+    the MDP value (:func:`~planning.pomdp.qmdp.solve_mdp`). The default policy is
+    ``blind``: the best blind policy (one action forever, the best from the initial
+    belief), which observes nothing; or ``qmdp``: at each depth of a rollout, the action of
+    largest QMDP value summed over the node's scenarios (QMDP on the node's particle set,
+    open loop below it; the thesis' Rel-DESPOT rolls out Rel-QMDP, sec. 7.3.3). Both use
+    nothing a scenario hides, so their returns are lower bounds.
     """
 
     uniforms_per_step = 2
 
-    def __init__(self, pomdp: TabularPOMDP):
+    def __init__(self, pomdp: TabularPOMDP, *, default_policy: str = "blind"):
+        if default_policy not in DEFAULT_POLICIES:
+            raise ValueError(f"default_policy must be one of {DEFAULT_POLICIES}, got "
+                             f"{default_policy!r}")
+        self.default_policy = default_policy
         self.pomdp = pomdp
         self.discount = pomdp.discount
         self.actions = pomdp.actions
@@ -146,6 +157,7 @@ class TabularGenerative:
         self._q = solve_mdp(pomdp)
         self._v = self._q.max(axis=1)
         self._blind = self._best_blind_action()
+        self._stacked = self._stack_rows()
         self.rollout(np.zeros((1, 1), dtype=np.int64), np.zeros(1, dtype=np.int64),
                      np.zeros(1, dtype=np.int64), np.array([0, 1]),
                      np.zeros((1, 2, 2)), 1)  # compile (or load the cached kernel) now
@@ -195,25 +207,39 @@ class TabularGenerative:
         return self._v[np.asarray(states)[:, 0]]
 
     def default_actions(self, states: np.ndarray) -> np.ndarray:
+        if self.default_policy == "qmdp":
+            live = np.asarray(states)[:, 0]
+            return np.full(len(states), int(np.argmax(self._q[live].sum(axis=0))),
+                           dtype=np.int64)
         return np.full(len(states), self._blind, dtype=np.int64)
 
-    def kernels(self):
-        """The compiled DESPOT's kernels (:func:`planning.pomdp.despot_kernels.make_core`)
-        and their parameters: the CSR rows of every T[a] stacked (padded) per action."""
+    def _stack_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every T[a]'s CSR arrays stacked per action (padded): (A, S + 1), (A, W), (A, W)."""
         width = max(len(indices) for _, indices, _ in self._successors)
-        indptr = np.stack([ip for ip, _, _ in self._successors])
+        indptr = np.stack([ip for ip, _, _ in self._successors]).astype(np.int64)
         indices = np.zeros((len(self.actions), width), dtype=np.int64)
         cumulative = np.zeros((len(self.actions), width))
         for a, (_, idx, cum) in enumerate(self._successors):
             indices[a, :len(idx)], cumulative[a, :len(cum)] = idx, cum
-        params = (indptr.astype(np.int64), indices, cumulative, self._cum_z, self.pomdp.R,
-                  self._terminal, self._v, int(self._blind))
-        return (tabular_step, tabular_upper, tabular_rollout), params
+        return indptr, indices, cumulative
+
+    def kernels(self):
+        """The compiled DESPOT's kernels (:func:`planning.pomdp.despot_kernels.make_core`)
+        and their parameters."""
+        rollout = tabular_qmdp_rollout if self.default_policy == "qmdp" else tabular_rollout
+        return (tabular_step, tabular_upper, rollout), (
+            *self._stacked, self._cum_z, self.pomdp.R, self._terminal, self._v,
+            int(self._blind), self._q)
 
     def rollout(self, states, scenarios, depths, offsets, uniforms, max_depth) -> np.ndarray:
-        """The blind policy's returns, compiled (see :func:`rollout_kernel`)."""
+        """The default policy's returns, compiled (see :func:`rollout_kernel`)."""
+        s = np.ascontiguousarray(np.asarray(states)[:, 0])
+        if self.default_policy == "qmdp":
+            return tabular_qmdp_rollouts(
+                np.asarray(states, dtype=float), scenarios, depths, offsets, uniforms,
+                max_depth, self.discount, *self._stacked, self.pomdp.R, self._terminal,
+                self._q)
         indptr, indices, cumulative = self._successors[self._blind]
-        return tabular_blind_rollout(
-            np.ascontiguousarray(np.asarray(states)[:, 0]), scenarios, depths, uniforms,
-            max_depth, self.discount, self._blind, indptr, indices, cumulative,
-            self.pomdp.R, self._terminal)
+        return tabular_blind_rollout(s, scenarios, depths, uniforms, max_depth,
+                                     self.discount, self._blind, indptr, indices, cumulative,
+                                     self.pomdp.R, self._terminal)

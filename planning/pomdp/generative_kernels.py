@@ -43,7 +43,7 @@ def tabular_blind_rollout(states, scenarios, depths, uniforms, max_depth, discou
 def tabular_step(params, state, action, u, out):  # pragma: no cover (compiled)
     """One scenario of :class:`~planning.pomdp.generative.TabularGenerative` (the kernel
     of the compiled DESPOT; see :func:`planning.pomdp.despot_kernels.make_core`)."""
-    indptr, indices, cumulative, cum_z, R, terminal, values, blind = params
+    indptr, indices, cumulative, cum_z, R, terminal, values, blind, Q = params
     s = int(state[0])
     if terminal[s]:
         out[0] = s
@@ -71,7 +71,7 @@ def tabular_upper(params, state):  # pragma: no cover (compiled)
 def tabular_rollout(params, states, scenarios, terminal_rows, depth, uniforms, max_depth,
                     discount):  # pragma: no cover (compiled)
     """The blind policy's returns over one node's scenarios, summed."""
-    indptr, indices, cumulative, cum_z, R, terminal, values, blind = params
+    indptr, indices, cumulative, cum_z, R, terminal, values, blind, Q = params
     total = 0.0
     for i in range(len(states)):
         if terminal_rows[i]:
@@ -91,3 +91,72 @@ def tabular_rollout(params, states, scenarios, terminal_rows, depth, uniforms, m
             s = indices[blind, k]
             scale *= discount
     return total
+
+
+@numba.njit
+def _qmdp_rollout_rows(states, scenarios, terminal_rows, depth, uniforms, max_depth,
+                       discount, indptr, indices, cumulative, R, terminal, Q, out):
+    """One node's rows under the node-level QMDP policy: at each depth every live row
+    takes the action of largest summed Q over the node's live rows (Q is the MDP's (S, A));
+    returns into ``out`` (n,)."""  # pragma: no cover (compiled)
+    n = len(states)
+    s = np.empty(n, dtype=np.int64)
+    alive = np.empty(n, dtype=np.bool_)
+    scale = np.ones(n)
+    for i in range(n):
+        s[i] = int(states[i, 0])
+        alive[i] = not terminal_rows[i] and not terminal[s[i]]
+        out[i] = 0.0
+    actions = Q.shape[1]
+    totals = np.empty(actions)
+    for t in range(depth, max_depth):
+        totals[:] = 0.0
+        live = 0
+        for i in range(n):
+            if alive[i]:
+                live += 1
+                for a in range(actions):
+                    totals[a] += Q[s[i], a]
+        if live == 0:
+            break
+        a = int(np.argmax(totals))
+        for i in range(n):
+            if not alive[i]:
+                continue
+            out[i] += scale[i] * R[s[i], a]
+            start, stop = indptr[a, s[i]], indptr[a, s[i] + 1]
+            base = cumulative[a, start - 1] if start > 0 else 0.0
+            target = base + uniforms[scenarios[i], t, 0] * (cumulative[a, stop - 1] - base)
+            k = start
+            while k < stop - 1 and cumulative[a, k] <= target:
+                k += 1
+            s[i] = indices[a, k]
+            scale[i] *= discount
+            if terminal[s[i]]:
+                alive[i] = False
+
+
+@numba.njit
+def tabular_qmdp_rollouts(states, scenarios, depths, offsets, uniforms, max_depth, discount,
+                          indptr, indices, cumulative, R, terminal, Q):  # pragma: no cover
+    """(M,) returns of the node-level QMDP policy for each node
+    ``offsets[j]:offsets[j + 1]`` (see :func:`_qmdp_rollout_rows`)."""
+    out = np.zeros(len(states))
+    no_terminal = np.zeros(len(states), dtype=np.bool_)
+    for j in range(len(offsets) - 1):
+        lo, hi = offsets[j], offsets[j + 1]
+        _qmdp_rollout_rows(states[lo:hi], scenarios[lo:hi], no_terminal[lo:hi], depths[lo],
+                           uniforms, max_depth, discount, indptr, indices, cumulative, R,
+                           terminal, Q, out[lo:hi])
+    return out
+
+
+@numba.njit
+def tabular_qmdp_rollout(params, states, scenarios, terminal_rows, depth, uniforms,
+                         max_depth, discount):  # pragma: no cover (compiled)
+    """The node-level QMDP policy's returns over one node's scenarios, summed."""
+    indptr, indices, cumulative, cum_z, R, terminal, values, blind, Q = params
+    out = np.empty(len(states))
+    _qmdp_rollout_rows(states, scenarios, terminal_rows, depth, uniforms, max_depth,
+                       discount, indptr, indices, cumulative, R, terminal, Q, out)
+    return out.sum()

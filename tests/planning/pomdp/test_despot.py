@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from planning.pomdp.benchmarks import tiger
+from planning.pomdp.benchmarks import tag, tiger
 from planning.pomdp.despot import Despot, DespotSettings
 from planning.pomdp.generative import TabularGenerative
 from planning.pomdp.online import DespotPlanner, run_episode, update_particles
@@ -108,10 +108,14 @@ def test_the_compiled_trees_bounds_never_cross(model, regularization):
     assert stats.policy_size <= stats.nodes
 
 
-def test_the_compiled_search_is_the_python_search(tiger_model):
-    """Same scenarios, same trials: the same tree (Tiger has no ties for rounding to
-    break differently; on Tag and RockSample, exact ties between actions can go either
-    way, so only the bounds' consistency is compared there)."""
+@pytest.mark.parametrize("pomdp", [tiger, tag], ids=["tiger", "tag"])
+@pytest.mark.parametrize("default_policy", ["blind", "qmdp"])
+def test_the_compiled_search_is_the_python_search(pomdp, default_policy):
+    """Same scenarios, same trials: the same tree, on tabular models (on the native Tag
+    and RockSample the two engines sum rollouts in different orders, and exact ties
+    between actions can then break either way, so only the bounds' consistency is
+    compared there)."""
+    tiger_model = TabularGenerative(pomdp(), default_policy=default_policy)
     particles = tiger_model.sample_initial(500, rng=np.random.default_rng(0))
     results = []
     for engine in ("python", "compiled"):
@@ -141,6 +145,20 @@ def test_the_wall_clock_budget_is_kept_to_within_one_trial():
     assert stats.trials >= 1
     assert stats.seconds <= 0.15 + stats.trial_ms_max / 1e3 + 0.005
     assert stats.overrun_ms == pytest.approx(max(0.0, (stats.seconds - 0.15) * 1e3))
+
+
+def test_qmdp_rollouts_bound_tiger_better_than_the_blind_policy():
+    """Tiger's blind policy listens forever (-20 over 90 steps); rolling out QMDP on the
+    node's scenarios opens a door when they agree, a far tighter lower bound."""
+    bounds = {}
+    for policy in ("blind", "qmdp"):
+        model = TabularGenerative(tiger(), default_policy=policy)
+        rng = np.random.default_rng(0)
+        search = Despot(model, DespotSettings(scenarios=300, max_trials=30, seconds=60))
+        bounds[policy] = search.search(model.sample_initial(500, rng=rng), rng=rng)[1].lower
+    assert bounds["qmdp"] > bounds["blind"] + 5.0
+    with pytest.raises(ValueError, match="default_policy"):
+        TabularGenerative(tiger(), default_policy="random")
 
 
 def test_the_compiled_engine_says_when_it_does_not_apply(tiger_model):
