@@ -17,27 +17,41 @@ in, so the root's bounds are the values of its policies):
   MDP value), or one passed in;
 - backups ``l(b) = max(l0(b), max_a l(b, a))``, ``mu(b) = max(l0(b), max_a mu(b, a))`` with
   ``x(b, a) = rho(b, a) + sum_z x(tau(b, a, z))`` and ``rho(b, a) = gamma^Delta / K *
-  sum_phi R(s_phi, a) - lambda`` (eq. 5 and Algorithm 4's BACKUP). Bounds that cross
-  (an upper bound below a rollout's return) are repaired (``mu = l``) and counted.
+  sum_phi R(s_phi, a) - lambda`` (eq. 5 and Algorithm 4's BACKUP). Bounds can cross: a
+  model's upper bound is an expectation (the MDP value), and one scenario's stream of
+  uniforms can beat it; crossed bounds are repaired (``mu = l``) and counted.
 
 Search (AR-DESPOT, Algorithm 3, the default): trials from the root take the action of
 largest upper bound, then the observation child of largest weighted excess uncertainty
 ``E(b) = mu(b) - l(b) - xi |Phi_b| / K (mu(b0) - l(b0))`` (xi = 0.95), expand a leaf (all
-its actions' scenarios in one ``step`` call each, all its children's rollouts in one
-batch), stop at depth D (default 90; the node then keeps its default policy,
-MAKEDEFAULT) or when E < 0, and back up along the path. ``variant="r"`` is R-DESPOT
-within a budget: nodes are expanded breadth first, and the regularised policy is the one
-the same backup computes bottom-up (the dynamic programme of JAIR sec. 4.1). Either way
-the final policy is pruned where the default policy is at least as good (``l0(b) >= max_a
-l(b, a)``), and its size is reported.
+its actions and scenarios in one ``step`` call, all its children's rollouts in one batch),
+stop at depth D (default 90; the node then keeps its default policy, MAKEDEFAULT) or when
+E < 0, and back up along the path. ``variant="r"`` is R-DESPOT within a budget: nodes are
+expanded breadth first, and the regularised policy is the one the same backup computes
+bottom-up (the dynamic programme of JAIR sec. 4.1). Either way the final policy is pruned
+where the default policy is at least as good (``l0(b) >= max_a l(b, a)``), and its size
+is reported.
 
-The budget is wall-clock time (the reference uses CPU time, ``clock()``), checked before
-every trial, so a decision overruns by at most one trial; the overrun is reported. The
-chosen action maximises the root's lower bound ``l(b0, a)``; with no expanded root (no
-time for a trial) or bounds that are equal or not finite, it is the default policy's action.
-Each decision builds a new tree and frees the last one (``reuse="none"``, default), or
-starts from the chosen action and received observation's subtree when it has at least
-``reuse_min_fraction`` of the scenarios (``reuse="subtree"``).
+Two engines run the same search: this module's Python objects (every variant and
+option), and :mod:`planning.pomdp.despot_kernels`' compiled trials on flat arrays, for AR
+without subtree reuse on models that give kernels (Tag, RockSample, tabular models); on
+tabular models the two build identical trees (tested). The tree has no reference cycles,
+and the cyclic garbage collector is paused during a search (its passes over tens of
+thousands of nodes were the budget overruns).
+
+The budget is wall-clock time, checked before every trial, so a decision overruns by at
+most one trial (reported, with the longest trial). The reference instead counts CPU time
+(``clock()``) of its tree building only, and stops when the next trial is predicted to
+overrun. The chosen action has the largest root lower bound ``l(b0, a)`` (ties: the
+larger upper bound); when the root was never expanded (no time for a trial, or its
+bounds already met) or a bound is not finite, it is the default policy's action. Each
+decision builds a new tree (``reuse="none"``, default), or starts from the chosen action
+and received observation's subtree when it has at least ``reuse_min_fraction`` of the
+scenarios (``reuse="subtree"``, Python engine).
+
+Differences from the reference's defaults, on purpose: Tag's upper bound here is the MDP
+value (the reference's default is the shortest-path bound, looser), and lambda is 0 on
+every problem (the reference's Tag sets 0.01).
 """
 
 from __future__ import annotations
@@ -246,30 +260,19 @@ class Despot:
             tree = self._new_tree(particles, weights, rng)
         self._uniforms, self._k = tree.uniforms, tree.scenarios
         root = tree.root
-        deadline = start + s.seconds
-        trials, depth_reached = 0, self._deepest(root) if reused else 0
         frontier = deque([(root,)])  # breadth-first queue of paths, for the R variant
-        trial_start, trial_max = start, 0.0
-        collecting = gc.isenabled()
-        gc.disable()  # the tree is acyclic: reference counts free it; see the docstring
-        try:
-            while (s.max_trials is None or trials < s.max_trials) and \
-                    time.perf_counter() < deadline and root.upper - root.lower > s.gap_stop:
-                if s.variant == "ar":
-                    path = self._trial(root)
-                else:
-                    path = self._expand_next(frontier)
-                    if path is None:
-                        break
-                depth_reached = max(depth_reached, path[-1].depth)
-                self._backup(path)
-                trials += 1
-                now = time.perf_counter()
-                trial_max = max(trial_max, now - trial_start)
-                trial_start = now
-        finally:
-            if collecting:
-                gc.enable()
+
+        def trial() -> int | None:
+            path = self._trial(root) if s.variant == "ar" else self._expand_next(frontier)
+            if path is None:
+                return None
+            self._backup(path)
+            return path[-1].depth
+
+        trials, depth_reached, trial_max = self._run_trials(
+            start, trial, lambda: root.upper - root.lower)
+        if reused:
+            depth_reached = max(depth_reached, self._deepest(root))
         elapsed = time.perf_counter() - start
         action = self._best_action(root)
         stats = DespotStats(
@@ -281,6 +284,35 @@ class Despot:
             overrun_ms=max(0.0, (elapsed - s.seconds) * 1e3), trial_ms_max=trial_max * 1e3,
             policy_size=self._policy_size(root), reused=reused)
         return action, stats, tree
+
+    def _run_trials(self, start: float, trial, gap) -> tuple[int, int, float]:
+        """Run ``trial()`` until the trial or time budget is spent or ``gap()`` (the root's)
+        closes, with the cyclic garbage collector paused. ``trial()`` returns the depth it
+        reached, -1 to be run again (not counted), or None to end the search. Returns
+        (trials, deepest depth, longest trial (s, the first one from ``start``))."""
+        s = self.settings
+        deadline = start + s.seconds
+        trials, depth_reached = 0, 0
+        trial_start, trial_max = start, 0.0
+        collecting = gc.isenabled()
+        gc.disable()  # the tree is acyclic: reference counts free it
+        try:
+            while (s.max_trials is None or trials < s.max_trials) and \
+                    time.perf_counter() < deadline and gap() > s.gap_stop:
+                reached = trial()
+                if reached is None:
+                    break
+                if reached < 0:
+                    continue
+                depth_reached = max(depth_reached, reached)
+                trials += 1
+                now = time.perf_counter()
+                trial_max = max(trial_max, now - trial_start)
+                trial_start = now
+        finally:
+            if collecting:
+                gc.enable()
+        return trials, depth_reached, trial_max
 
     def _warm_up(self) -> None:
         """Compile the core now (a few seconds once per process and model), with a
@@ -328,34 +360,26 @@ class Despot:
         tree.lower[0], tree.upper[0] = tree.l0[0], tree.u0[0]
         crossings = np.zeros(1, dtype=np.int64)
         path = np.zeros(s.depth + 2, dtype=np.int64)
-        deadline = start + s.seconds
-        trials, depth_reached = 0, 0
-        trial_start, trial_max = start, 0.0
         grow_after = False
-        collecting = gc.isenabled()
-        gc.disable()
-        try:
-            while (s.max_trials is None or trials < s.max_trials) and \
-                    time.perf_counter() < deadline and \
-                    tree.upper[0] - tree.lower[0] > s.gap_stop:
-                arrays, pool = tree.as_tuples()
-                length = self._core(0, arrays, pool, tree.counts, uniforms,
-                                    self._kernel_params, self._actions, s.depth, self._gamma,
-                                    lam, float(s.scenarios), s.xi, crossings, path)
-                if length == GROW:  # out of room: grow now, or after the search when
-                    if time.perf_counter() - start > 0.5 * s.seconds:  # growing late
-                        grow_after = True  # would overrun the budget (copying the pool)
-                        break
-                    tree.grow(s.scenarios * self._actions)
-                    continue
-                depth_reached = max(depth_reached, int(tree.depth[path[length - 1]]))
-                trials += 1
-                now = time.perf_counter()
-                trial_max = max(trial_max, now - trial_start)
-                trial_start = now
-        finally:
-            if collecting:
-                gc.enable()
+
+        def trial() -> int | None:
+            nonlocal grow_after
+            arrays, pool = tree.as_tuples()
+            length = self._core(0, arrays, pool, tree.counts, uniforms, self._kernel_params,
+                                self._actions, s.depth, self._gamma, lam, float(s.scenarios),
+                                s.xi, crossings, path)
+            if length != GROW:
+                return int(tree.depth[path[length - 1]])
+            # out of room: grow now, or, late in the budget, after the search (copying the
+            # pool then would overrun it)
+            if time.perf_counter() - start > 0.5 * s.seconds:
+                grow_after = True
+                return None
+            tree.grow(s.scenarios * self._actions)
+            return -1
+
+        trials, depth_reached, trial_max = self._run_trials(
+            start, trial, lambda: tree.upper[0] - tree.lower[0])
         elapsed = time.perf_counter() - start
         self._crossings = int(crossings[0])
         if grow_after:  # for the next decision, outside this one's search budget
