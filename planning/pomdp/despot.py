@@ -575,46 +575,37 @@ class Despot:
     def _backup(self, path) -> None:
         """Bounds from the end of ``path`` up to the root (JAIR Algorithm 4's BACKUP)."""
         for node in reversed(path):
-            if node.children:
-                for q in node.children:
-                    q.lower = q.rho + sum(c.lower for c in q.children.values())
-                    q.upper = q.rho + sum(c.upper for c in q.children.values())
-                node.lower = max(node.l0, max(q.lower for q in node.children))
-                if node.depth < self.settings.depth:
-                    node.upper = max(node.l0, max(q.upper for q in node.children))
-            if node.upper < node.lower:
-                if node.lower - node.upper > CROSSING_TOLERANCE:
-                    self._crossings += 1
-                node.upper = node.lower
+            self._back_up_node(node)
+
+    def _back_up_node(self, node: _BeliefNode) -> None:
+        """One node's bounds from its children's; a crossing is repaired and counted."""
+        if node.children:
+            for q in node.children:
+                q.lower = q.rho + sum(c.lower for c in q.children.values())
+                q.upper = q.rho + sum(c.upper for c in q.children.values())
+            node.lower = max(node.l0, max(q.lower for q in node.children))
+            if node.depth < self.settings.depth:
+                node.upper = max(node.l0, max(q.upper for q in node.children))
+        if node.upper < node.lower:
+            if node.lower - node.upper > CROSSING_TOLERANCE:
+                self._crossings += 1
+            node.upper = node.lower
 
     def _rescale(self, node: _BeliefNode, scale: float, shift: int) -> None:
         """Re-root a subtree: depths less ``shift``, and its bounds recomputed with the new
         weights (each weighted sum times ``scale``; lambda stays per node)."""
         lam = self.settings.regularization
-        stack = [node]
-        order = []
-        while stack:
-            b = stack.pop()
-            order.append(b)
+        order = list(self._nodes(node))
+        for b in order:
             b.depth -= shift
             b.l0 = (b.l0 + lam) * scale - lam
             b.u0 = b.u0 * scale if not b.terminal.all() else b.l0
-            if b.children:
-                for q in b.children:
-                    q.rho = (q.rho + lam) * scale - lam
-                    stack.extend(q.children.values())
+            for q in b.children or ():
+                q.rho = (q.rho + lam) * scale - lam
         for b in reversed(order):  # leaves first
-            b.lower, b.upper = b.l0, b.u0
-            if b.depth >= self.settings.depth:
-                b.upper = b.lower
-            if b.children:
-                for q in b.children:
-                    q.lower = q.rho + sum(c.lower for c in q.children.values())
-                    q.upper = q.rho + sum(c.upper for c in q.children.values())
-                b.lower = max(b.l0, max(q.lower for q in b.children))
-                if b.depth < self.settings.depth:
-                    b.upper = max(b.l0, max(q.upper for q in b.children))
-            b.upper = max(b.upper, b.lower)
+            b.lower = b.l0
+            b.upper = b.lower if b.depth >= self.settings.depth else b.u0
+            self._back_up_node(b)
 
     # -- answers
     def _best_action(self, root: _BeliefNode) -> int:
@@ -660,23 +651,17 @@ class Despot:
         return size
 
     @staticmethod
-    def _count(root: _BeliefNode) -> int:
-        count, stack = 0, [root]
+    def _nodes(root: _BeliefNode):
+        """Every belief node of the tree below ``root``."""
+        stack = [root]
         while stack:
             b = stack.pop()
-            count += 1
-            if b.children:
-                for q in b.children:
-                    stack.extend(q.children.values())
-        return count
+            yield b
+            for q in b.children or ():
+                stack.extend(q.children.values())
 
-    @staticmethod
-    def _deepest(root: _BeliefNode) -> int:
-        deepest, stack = 0, [root]
-        while stack:
-            b = stack.pop()
-            deepest = max(deepest, b.depth)
-            if b.children:
-                for q in b.children:
-                    stack.extend(q.children.values())
-        return deepest
+    def _count(self, root: _BeliefNode) -> int:
+        return sum(1 for _ in self._nodes(root))
+
+    def _deepest(self, root: _BeliefNode) -> int:
+        return max(b.depth for b in self._nodes(root))
