@@ -125,6 +125,16 @@ class DespotSettings:
 _CORES: dict = {}
 
 
+def belief_nodes(root):
+    """Every belief node of the (Python engine's) tree below ``root``, parents first."""
+    stack = [root]
+    while stack:
+        b = stack.pop()
+        yield b
+        for q in b.children or ():
+            stack.extend(q.children.values())
+
+
 def compiled_core(functions: tuple):
     """The compiled trial for a model's kernel functions, built once per process."""
     if functions not in _CORES:
@@ -595,7 +605,7 @@ class Despot:
         """Re-root a subtree: depths less ``shift``, and its bounds recomputed with the new
         weights (each weighted sum times ``scale``; lambda stays per node)."""
         lam = self.settings.regularization
-        order = list(self._nodes(node))
+        order = list(belief_nodes(node))
         for b in order:
             b.depth -= shift
             b.l0 = (b.l0 + lam) * scale - lam
@@ -650,18 +660,8 @@ class Despot:
                 stack.extend(best.children.values())
         return size
 
-    @staticmethod
-    def _nodes(root: _BeliefNode):
-        """Every belief node of the tree below ``root``."""
-        stack = [root]
-        while stack:
-            b = stack.pop()
-            yield b
-            for q in b.children or ():
-                stack.extend(q.children.values())
-
     def _count(self, root: _BeliefNode) -> int:
-        return sum(1 for _ in self._nodes(root))
+        return sum(1 for _ in belief_nodes(root))
 
     def _deepest(self, root: _BeliefNode) -> int:
-        return max(b.depth for b in self._nodes(root))
+        return max(b.depth for b in belief_nodes(root))

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from planning.pomdp.benchmarks import tag, tiger
-from planning.pomdp.despot import Despot, DespotSettings
+from planning.pomdp.despot import Despot, DespotSettings, belief_nodes
 from planning.pomdp.generative import TabularGenerative
 from planning.pomdp.online import DespotPlanner, run_episode, update_particles
 from planning.pomdp.rocksample import RockSample
@@ -30,16 +30,6 @@ def finite_horizon_value(pomdp, belief, depth):
                 value += pomdp.discount * p * finite_horizon_value(pomdp, posterior, depth - 1)
         best = max(best, value)
     return best
-
-
-def walk(node):
-    """Every belief node below ``node``."""
-    stack = [node]
-    while stack:
-        b = stack.pop()
-        yield b
-        for q in b.children or ():
-            stack.extend(q.children.values())
 
 
 @pytest.fixture(scope="module")
@@ -81,7 +71,7 @@ def test_bounds_never_cross_after_the_backups(model, variant, regularization):
                                           variant=variant, regularization=regularization,
                                           engine="python"))
     _, stats, tree = search.search(model.sample_initial(500, rng=rng), rng=rng)
-    nodes = list(walk(tree.root))
+    nodes = list(belief_nodes(tree.root))
     assert len(nodes) == stats.nodes > 1
     for b in nodes:
         assert b.lower <= b.upper
@@ -209,7 +199,7 @@ def test_subtree_reuse_rescales_the_kept_tree():
     assert second.stats["reused"]
     root = second.memory.tree.root
     assert root.depth == 0 and len(root.scenarios) == second.memory.tree.scenarios
-    for b in walk(root):
+    for b in belief_nodes(root):
         assert b.lower <= b.upper + 1e-12
 
 
