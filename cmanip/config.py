@@ -9,6 +9,7 @@ Every default is written once: in the settings dataclasses of the layers below
 :class:`~experiments.mpf_study.TrialSettings`,
 :class:`~experiments.handplan_study.HandplanSettings`,
 :class:`~experiments.visuotactile_study.VisuotactileSettings`,
+:class:`~experiments.latdespot_study.RelSettings`,
 :class:`~planning.hand.solution.HandSolveSettings`), in the study configurations here
 (which part, how many trials, which seed) and, for what the closed loop solves, in
 :data:`CLOSED_LOOP_SOLVER` here.
@@ -23,6 +24,8 @@ from diagrams.herb.settings import EpisodeSettings
 from experiments.closedloop_study import ClosedLoopSettings
 from experiments.handplan_study import PARTS as HANDPLAN_PARTS
 from experiments.handplan_study import HandplanSettings
+from experiments.latdespot_study import PARTS as LATDESPOT_PARTS
+from experiments.latdespot_study import RelSettings
 from experiments.mpf_study import PARTS as MPF_PARTS
 from experiments.mpf_study import TrialSettings
 from experiments.visuotactile_study import PARTS as VISUOTACTILE_PARTS
@@ -140,6 +143,22 @@ class VisuotactileStudyConfig:
 
     def __post_init__(self):
         _check_part(self.part, (*VISUOTACTILE_PARTS, "all"))
+
+
+@dataclass(frozen=True)
+class LatDespotStudyConfig:
+    """The ch. 7 study (``cmanip experiment latdespot``).
+
+    Attributes:
+        part: which experiment (``rel``: the hand-relative problem, Fig. 7.3).
+        rel: its settings.
+    """
+
+    part: str = "rel"
+    rel: RelSettings = RelSettings()
+
+    def __post_init__(self):
+        _check_part(self.part, LATDESPOT_PARTS)
 
 
 def load_config(cls, path: Path | None):

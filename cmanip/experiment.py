@@ -6,6 +6,7 @@ each writing ``summary.json`` and PNGs into ``--out``.
     handplan      QMDP vs point-based post-contact policies, pre-contact A* (thesis ch. 6)
     closedloop    closed-loop episodes in Drake from the thesis' three initial beliefs (6.5)
     visuotactile  vision + touch smoothing vs EKF and vision (Yu and Rodriguez 2018)
+    latdespot     thesis ch. 7: Rel-QMDP, Rel-SARSOP and Rel-DESPOT (sec. 7.3.3)
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from pathlib import Path
 from cmanip.config import (
     ClosedLoopStudyConfig,
     HandplanStudyConfig,
+    LatDespotStudyConfig,
     MpfStudyConfig,
     VisuotactileStudyConfig,
     load_config,
@@ -28,6 +30,7 @@ from cmanip.run import add_episode_options, override_episode, override_solver, s
 from diagrams.herb.settings import POLICIES
 from experiments.closedloop_study import ClosedLoopSettings
 from experiments.handplan_study import PARTS as HANDPLAN_PARTS
+from experiments.latdespot_study import PARTS as LATDESPOT_PARTS
 from experiments.mpf_study import PARTS as MPF_PARTS
 from experiments.visuotactile_study import PARTS as VISUOTACTILE_PARTS
 
@@ -35,6 +38,7 @@ MPF = MpfStudyConfig()
 HANDPLAN = HandplanStudyConfig()
 CLOSEDLOOP = ClosedLoopSettings()
 VISUOTACTILE = VisuotactileStudyConfig()
+LATDESPOT = LatDespotStudyConfig()
 
 
 def register(commands) -> None:
@@ -127,6 +131,58 @@ def register(commands) -> None:
                     help="output directory (summary.json, figures, config.yaml)")
     vt.add_argument("--no-progress", action="store_true", help="no progress bars")
     vt.set_defaults(handler=_visuotactile)
+    _register_latdespot(studies)
+
+
+def _register_latdespot(studies) -> None:
+    lat = subcommand(studies, "latdespot", "thesis ch. 7: Rel-QMDP, Rel-SARSOP and "
+                                           "Rel-DESPOT on the hand-relative problem (7.3.3)")
+    _config_option(lat)
+    rel = LATDESPOT.rel
+    setting_option(lat, "--part", LATDESPOT.part, "which experiment", choices=LATDESPOT_PARTS)
+    setting_option(lat, "--trials", rel.trials, "episodes per policy and model", type=int)
+    setting_option(lat, "--seed", rel.seed, "the study's seed", type=int)
+    setting_option(lat, "--horizon", rel.horizon, "steps per episode", type=int)
+    setting_option(lat, "--problem", rel.problem, "the problem (built-in name or YAML path)")
+    setting_option(lat, "--solve-seconds", rel.solve_seconds,
+                   "point-based solver wall-time cap (s)", type=float)
+    setting_option(lat, "--solve-trials", rel.solve_trials,
+                   "point-based solver trial budget", type=int)
+    setting_option(lat, "--despot-trials", rel.despot_trials,
+                   "DESPOT trials per decision", type=int)
+    setting_option(lat, "--despot-seconds", rel.despot_seconds,
+                   "DESPOT wall-clock cap per decision (s)", type=float)
+    lat.add_argument("--out", type=Path, required=True,
+                     help="output directory (summary.json, figures, config.yaml)")
+    lat.set_defaults(handler=_latdespot)
+
+
+def resolve_latdespot(args: argparse.Namespace) -> LatDespotStudyConfig:
+    """The ch. 7 study's configuration: ``--config`` (or the defaults), then the options
+    given."""
+    config = load_config(LatDespotStudyConfig, args.config)
+    rel = overridden(config.rel, args, {
+        "trials": "trials", "seed": "seed", "horizon": "horizon", "problem": "problem",
+        "solve_seconds": "solve_seconds", "solve_trials": "solve_trials",
+        "despot_trials": "despot_trials", "despot_seconds": "despot_seconds"})
+    return overridden(replace(config, rel=rel), args, {"part": "part"})
+
+
+def _latdespot(args: argparse.Namespace) -> int:
+    from experiments.latdespot_study import run_rel
+    from planning.hand.discretization import HandProblemSpec
+
+    config = resolve_latdespot(args)
+    HandProblemSpec.load(config.rel.problem)  # a bad file fails before any solving
+    summary = run_rel(config.rel, args.out)
+    write_config(config, args.out)
+    for name, r in summary["rel"].items():
+        lo, hi = r["success_rate_ci95"]
+        print(f"  {name:11s} value {r['discounted_value']:7.2f} +- "
+              f"{r['discounted_value_ci95']:.2f}; success {r['success_rate']:.0%} "
+              f"[{lo:.0%}, {hi:.0%}]; planning median {r['planning_ms_median']:.2f} ms")
+    print(f"wrote {args.out}/summary.json, rel_value.png, rel_success.png, config.yaml")
+    return 0
 
 
 def _config_option(parser) -> None:

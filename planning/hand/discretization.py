@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from models.config import Fields
+from models.config import Fields, resolve_asset
 from models.planar.cspace import c_obstacle
 from models.planar.world import PlanarWorld
 
@@ -49,10 +49,18 @@ class HandProblemSpec:
         contact_cell_m: longest contact-manifold piece (m).
         goal_depth_m: goal region depth along x, measured from the hand's front (m).
         goal_width_m: goal region width across, centred on the hand's axis (m).
-        step_m: length of the axis-aligned actions; the diagonals move ``step_m`` along
-            both axes (thesis: 2 cm and 2 sqrt(2) cm, aligned with the grid).
+        step_m: the actions' unit length (m).
         discount: the POMDP discount; the thesis does not give one.
         samples_per_state: Monte Carlo samples per discrete state for T, Z and R.
+        action_names: the actions, in order.
+        action_directions: each action's planar hand motion in units of ``step_m`` (x
+            forward, y left). Default: ch. 6's five (forward, left, right and the two
+            forward diagonals: 2 cm and 2 sqrt(2) cm, aligned with the grid); ch. 7 uses
+            four 1 cm moves (forward, back, left, right).
+        contact_states: separate the contact manifold from free space (ch. 6); without
+            (ch. 7, "the simple geometry and high resolution of the discretization made
+            doing so unnecessary", sec. 7.3.1) every pose in the trust region falls in its
+            grid cell, and the observation model is estimated from where the actions land.
     """
 
     trust_x_m: tuple[float, float] = (0.0, 0.40)
@@ -65,6 +73,10 @@ class HandProblemSpec:
     step_m: float = 0.02
     discount: float = 0.95
     samples_per_state: int = 50
+    action_names: tuple[str, ...] = ACTION_NAMES
+    action_directions: tuple[tuple[float, float], ...] = tuple(
+        (float(x), float(y)) for x, y in ACTION_DIRECTIONS)
+    contact_states: bool = True
 
     def __post_init__(self):
         for name in ("trust_x_m", "trust_y_m"):
@@ -77,12 +89,31 @@ class HandProblemSpec:
             raise ValueError("cell_theta_rad must be in (0, pi]")
         if not 0 <= self.discount < 1 or self.samples_per_state < 1 or self.step_m <= 0:
             raise ValueError("discount must be in [0, 1), samples_per_state >= 1, step_m > 0")
+        if not self.action_names or len(self.action_names) != len(self.action_directions):
+            raise ValueError(f"{len(self.action_names)} action names for "
+                             f"{len(self.action_directions)} directions; give one of each")
+        if len(set(self.action_names)) != len(self.action_names):
+            raise ValueError(f"action names must differ, got {self.action_names}")
+        if any(np.hypot(*d) == 0 for d in self.action_directions):
+            raise ValueError("every action must move the hand (a direction is zero)")
 
     @staticmethod
     def load(path) -> HandProblemSpec:
-        """Read a YAML file whose keys are this class's fields (all optional)."""
-        fields = Fields.from_file(path)
+        """Read a problem by built-in name (``models/assets/problems/``: ``rel_ch7``) or
+        path; a YAML file whose keys are this class's fields, every one optional: a
+        problem file overrides the thesis' ch. 6 problem (``cell_theta_deg`` in degrees;
+        ``actions``: a mapping of names to [x, y] directions in units of ``step_m``)."""
+        fields = Fields.from_file(resolve_asset("problems", path))
         default = HandProblemSpec()
+        names, directions = default.action_names, default.action_directions
+        if fields.has("actions"):
+            actions = fields.sub("actions")
+            names = tuple(actions.keys())
+            if not names:
+                raise fields.error("actions", "needs at least one action")
+            directions = tuple(tuple(actions.vector(name, 2, min=-10.0, max=10.0))
+                               for name in names)
+            actions.done()
         spec = HandProblemSpec(
             trust_x_m=tuple(fields.vector("trust_x_m", 2, default.trust_x_m)),
             trust_y_m=tuple(fields.vector("trust_y_m", 2, default.trust_y_m)),
@@ -97,18 +128,22 @@ class HandProblemSpec:
             discount=fields.number("discount", default.discount, min=0.0, max=0.9999),
             samples_per_state=int(fields.number("samples_per_state", default.samples_per_state,
                                                 min=1, max=10_000, integer=True)),
+            action_names=names,
+            action_directions=directions,
+            contact_states=fields.boolean("contact_states", default.contact_states),
         )
         fields.done()
         return spec
 
     def action_vectors(self) -> np.ndarray:
-        """(5, 3) hand motions (dx m, dy m, dtheta rad) in the order of ``ACTION_NAMES``."""
-        return np.column_stack([ACTION_DIRECTIONS * self.step_m, np.zeros(5)])
+        """(A, 3) hand motions (dx m, dy m, dtheta rad) in the order of ``action_names``."""
+        directions = np.array(self.action_directions, dtype=float)
+        return np.column_stack([directions * self.step_m, np.zeros(len(directions))])
 
     @property
     def max_action_m(self) -> float:
-        """Length of the longest action (the diagonals), d_max of sec. 6.3.3."""
-        return float(np.sqrt(2.0) * self.step_m)
+        """Length of the longest action (ch. 6: the diagonals), d_max of sec. 6.3.3."""
+        return float(np.max(np.linalg.norm(self.action_vectors()[:, :2], axis=1)))
 
 
 def symmetry_order(outline: np.ndarray, tolerance_m: float = 1e-9) -> int:
@@ -159,7 +194,7 @@ class HandDiscretization:
         ny = int(round((spec.trust_y_m[1] - spec.trust_y_m[0]) / spec.free_cell_m))
         self.shape_xy = (nx, ny)
         self.contours = []
-        for k in range(self.theta_bins):
+        for k in range(self.theta_bins if spec.contact_states else 0):
             outer = self._contour(self.bin_centre(k))
             length = float(outer.length)
             self.contours.append(_Contour(outer, length,
@@ -220,7 +255,7 @@ class HandDiscretization:
             return out
         inside = self.inside(states)
         contact = np.zeros(len(states), dtype=bool)
-        if np.any(inside):
+        if np.any(inside) and self.spec.contact_states:
             contact[inside] = self.world.in_contact(states[inside])
         k = self.theta_bin(states[:, 2])
         free = inside & ~contact
@@ -297,6 +332,8 @@ class HandDiscretization:
         orientations per bin (with jitter inside the level's slice), then classified by
         :meth:`index`; this is uniform over the states that map to each piece.
         """
+        if not self.contours:  # no contact states (``contact_states=False``)
+            return np.empty((0, 3)), np.empty(0, dtype=np.int64)
         width = self.period_rad / self.theta_bins
         poses = []
         for b, contour in enumerate(self.contours):

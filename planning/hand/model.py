@@ -30,7 +30,7 @@ from tqdm import tqdm
 
 from models.planar.observation import observation_keys
 from models.planar.world import PlanarWorld
-from planning.hand.discretization import ACTION_NAMES, HandDiscretization, HandProblemSpec
+from planning.hand.discretization import HandDiscretization, HandProblemSpec
 from planning.pomdp.tabular import TabularPOMDP
 
 
@@ -134,27 +134,24 @@ def build_hand_pomdp(world: PlanarWorld, spec: HandProblemSpec = HandProblemSpec
         return np.where(out >= 0, out, sentinel)
 
     actions = spec.action_vectors()
-    T = []
+    n_obs = 2 ** world.sensor_count
+    T, Z = [], []
     steps = tqdm(actions, desc="hand POMDP transitions", unit="action", disable=not progress)
     for action in steps:
-        landed = to_model(disc.index(world.sample_step(poses, action, rng=rng)))
+        moved = world.sample_step(poses, action, rng=rng)
+        landed = to_model(disc.index(moved))
         rows = np.concatenate([state, [sentinel]])
         cols = np.concatenate([landed, [sentinel]])
         vals = np.concatenate([weight, [1.0]])
         T.append(sp.csr_matrix((vals, (rows, cols)), shape=(S, S)))
-
-    n_obs = 2 ** world.sensor_count
-    contact, touching = world.sensing.readings(poses)
-    key = observation_keys(touching)
-    e = world.sensing.error_rate
-    wrong = e / (n_obs - 1)
-    Zs = np.zeros((S, n_obs))
-    # in contact: wrong everywhere, plus (1 - e - wrong) on the true reading
-    np.add.at(Zs, (state[contact], slice(None)), (weight[contact] * wrong)[:, None])
-    np.add.at(Zs, (state[contact], key[contact]), weight[contact] * (1 - e - wrong))
-    np.add.at(Zs, (state[~contact], 0), weight[~contact])
-    Zs[sentinel, 0] = 1.0
-    Z = np.broadcast_to(Zs, (len(actions), S, n_obs)).copy()
+        if not spec.contact_states:  # a cell's readings: where the action's pushes land
+            Z.append(_observations(world, moved, landed, weight, S, n_obs,
+                                   fallback=(poses, state, weight)))
+    if spec.contact_states:  # a state's readings: its own samples, the same for every a
+        Zs = _observations(world, poses, state, weight, S, n_obs)
+        Z = np.broadcast_to(Zs, (len(actions), S, n_obs)).copy()
+    else:
+        Z = np.stack(Z)
 
     goal = np.bincount(state, weights=weight * in_goal(world, spec, poses), minlength=S)
     R = np.repeat((goal - 1.0)[:, None], len(actions), axis=1)
@@ -164,7 +161,32 @@ def build_hand_pomdp(world: PlanarWorld, spec: HandProblemSpec = HandProblemSpec
     initial = np.zeros(S)
     initial[:np.count_nonzero(occupied[:disc.free_count])] = 1.0
     initial /= initial.sum()
-    pomdp = TabularPOMDP(tuple(names.tolist()), ACTION_NAMES,
+    pomdp = TabularPOMDP(tuple(names.tolist()), spec.action_names,
                          tuple(format(o, f"0{world.sensor_count}b")[::-1] for o in range(n_obs)),
                          tuple(T), Z, R, spec.discount, initial)
     return HandPOMDP(pomdp, disc, kept, spec, world, time.perf_counter() - start)
+
+
+def _observations(world: PlanarWorld, poses: np.ndarray, state: np.ndarray,
+                  weight: np.ndarray, S: int, n_obs: int, *, fallback=None) -> np.ndarray:
+    """(S, O) observation probabilities of each state from the readings at ``poses`` (M,
+    3) in ``state`` (M,), each pose weighted by ``weight`` (M,): in contact, the true
+    reading with probability 1 - e, each other one e / (O - 1); free, no reading. With a
+    ``fallback`` (poses, states, weights), each state's row is normalised and a state no
+    pose reached takes the fallback's; the sentinel reads nothing."""
+    contact, touching = world.sensing.readings(poses)
+    key = observation_keys(touching)
+    e = world.sensing.error_rate
+    wrong = e / (n_obs - 1)
+    Zs = np.zeros((S, n_obs))
+    np.add.at(Zs, (state[contact], slice(None)), (weight[contact] * wrong)[:, None])
+    np.add.at(Zs, (state[contact], key[contact]), weight[contact] * (1 - e - wrong))
+    np.add.at(Zs, (state[~contact], 0), weight[~contact])
+    if fallback is not None:  # landed poses weigh by their origin: normalise per state
+        total = Zs.sum(axis=1)
+        seen = total > 0
+        Zs[seen] /= total[seen, None]
+        Zs[~seen] = _observations(world, *fallback, S, n_obs)[~seen]
+    Zs[S - 1] = 0.0
+    Zs[S - 1, 0] = 1.0
+    return Zs

@@ -328,7 +328,8 @@ class Despot:
         """Compile the core now (a few seconds once per process and model), with a
         one-trial search, rather than inside the first decision's budget."""
         settings = self.settings
-        self.settings = replace(settings, scenarios=2, depth=2, max_trials=1)
+        self.settings = replace(settings, scenarios=2, depth=2, max_trials=1,
+                                gap_stop=-np.inf)  # one trial even if the bounds meet
         try:
             rng = np.random.default_rng(0)
             self._search_compiled(self.model.sample_initial(2, rng=rng), None, rng)

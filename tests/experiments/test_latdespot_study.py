@@ -1,0 +1,66 @@
+"""``cmanip experiment latdespot --part rel`` end to end on a small problem, and the ch. 7
+problem file: four 1 cm actions, no separate contact states."""
+
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from cmanip.cli import main
+from models.config import ConfigError
+from models.planar.world import PlanarWorld
+from planning.hand.discretization import HandDiscretization, HandProblemSpec
+
+SMALL = """trust_x_m: [0.0, 0.20]
+trust_y_m: [-0.06, 0.06]
+free_cell_m: 0.02
+contact_states: false
+step_m: 0.02
+actions:
+  forward: [1, 0]
+  back: [-1, 0]
+  left: [0, 1]
+  right: [0, -1]
+samples_per_state: 6
+"""
+
+
+def test_the_chapter_7_problem_has_four_moves_and_one_grid():
+    spec = HandProblemSpec.load("rel_ch7")
+    assert spec.action_names == ("forward", "back", "left", "right")
+    np.testing.assert_allclose(spec.action_vectors()[1], [-0.01, 0.0, 0.0])
+    assert spec.max_action_m == pytest.approx(0.01)
+    world = PlanarWorld.load("bottle", sensors="fingertips", error_rate=0.0)
+    disc = HandDiscretization(world, spec)
+    assert disc.shape_xy == (20, 44) and disc.contact_count == 0
+    touching = np.array([[0.09, 0.0, 0.0]])  # the bottle against the palm region
+    assert disc.index(touching)[0] < disc.free_count  # a grid cell, contact or not
+
+
+def test_problem_files_name_bad_actions(refused):
+    refused(HandProblemSpec.load, "actions: {forward: [1]}\n", "actions.forward")
+    refused(HandProblemSpec.load, "actions: {}\n", "actions")
+    with pytest.raises(ConfigError, match="unknown problems name"):
+        HandProblemSpec.load("no_such_problem")
+
+
+def test_rel_runs_end_to_end_and_replays_its_config(tmp_path, capsys):
+    problem = tmp_path / "small.yaml"
+    problem.write_text(SMALL)
+    out = tmp_path / "rel"
+    assert main(["experiment", "latdespot", "--part", "rel", "--trials", "4", "--horizon",
+                 "6", "--problem", str(problem), "--solve-trials", "10", "--solve-seconds",
+                 "30", "--despot-trials", "5", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["rel"]) == {"rel-qmdp", "rel-sarsop", "rel-despot"}
+    for entry in summary["rel"].values():
+        for key in ("discounted_value", "discounted_value_ci95", "success_rate",
+                    "success_rate_ci95", "planning_ms_median"):
+            assert key in entry
+        assert len(entry["success_over_time"]) == 7
+    assert summary["model"]["actions"] == ["forward", "back", "left", "right"]
+    assert (out / "rel_value.png").is_file() and (out / "rel_success.png").is_file()
+    config = yaml.safe_load((out / "config.yaml").read_text())
+    assert config["rel"]["trials"] == 4 and config["rel"]["problem"] == str(problem)
+    assert "rel-despot" in capsys.readouterr().out
