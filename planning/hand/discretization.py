@@ -143,7 +143,7 @@ class HandProblemSpec:
     @property
     def max_action_m(self) -> float:
         """Length of the longest action (ch. 6: the diagonals), d_max of sec. 6.3.3."""
-        return float(np.max(np.linalg.norm(self.action_vectors()[:, :2], axis=1)))
+        return float(max(np.hypot(*d) for d in self.action_directions) * self.step_m)
 
 
 def symmetry_order(outline: np.ndarray, tolerance_m: float = 1e-9) -> int:
