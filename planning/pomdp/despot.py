@@ -324,6 +324,12 @@ class Despot:
                 gc.enable()
         return trials, depth_reached, trial_max
 
+    @property
+    def workspace_bytes(self) -> int:
+        """The compiled engine's reusable tree arrays (bytes; 0 for the Python engine):
+        they grow to the largest tree a decision has needed, then stay."""
+        return 0 if self._workspace is None else self._workspace.nbytes
+
     def _warm_up(self) -> None:
         """Compile the core now (a few seconds once per process and model), with a
         one-trial search, rather than inside the first decision's budget."""

@@ -253,6 +253,12 @@ class ArrayTree:
             new[:len(old)] = old
             setattr(self, name, new)
 
+    @property
+    def nbytes(self) -> int:
+        """The arrays' size (bytes)."""
+        tree, pool = self.as_tuples()
+        return sum(a.nbytes for a in (*tree, *pool))
+
     def as_tuples(self):
         """(tree, pool) as the kernels take them."""
         return ((self.depth, self.start, self.count, self.l0, self.u0, self.lower,
