@@ -233,13 +233,13 @@ class TabularGenerative:
 
     def rollout(self, states, scenarios, depths, offsets, uniforms, max_depth) -> np.ndarray:
         """The default policy's returns, compiled (see :func:`rollout_kernel`)."""
-        s = np.ascontiguousarray(np.asarray(states)[:, 0])
         if self.default_policy == "qmdp":
             return tabular_qmdp_rollouts(
                 np.asarray(states, dtype=float), scenarios, depths, offsets, uniforms,
                 max_depth, self.discount, *self._stacked, self.pomdp.R, self._terminal,
                 self._q)
         indptr, indices, cumulative = self._successors[self._blind]
-        return tabular_blind_rollout(s, scenarios, depths, uniforms, max_depth,
+        index = np.ascontiguousarray(np.asarray(states)[:, 0])
+        return tabular_blind_rollout(index, scenarios, depths, uniforms, max_depth,
                                      self.discount, self._blind, indptr, indices, cumulative,
                                      self.pomdp.R, self._terminal)

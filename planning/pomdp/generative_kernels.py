@@ -5,12 +5,31 @@ search depth; in numpy each depth costs one interpreter round trip per batch, wh
 deep, never-ending problems (Tiger: 90 steps) dominated the search (measured: 93 % of a
 1-s decision). These kernels run a whole rollout per scenario in one compiled loop,
 reading each scenario's own uniforms, so they are the same returns as the numpy loop.
+The tabular model's kernels of the compiled DESPOT (``tabular_step``, ``tabular_upper``,
+``tabular_rollout``, ``tabular_qmdp_rollout``; see
+:func:`planning.pomdp.despot_kernels.make_core`) are here too, all drawing successors with
+:func:`successor`.
 """
 
 from __future__ import annotations
 
 import numba
 import numpy as np
+
+
+@numba.njit
+def successor(indptr, indices, cumulative, s, u):  # pragma: no cover (compiled)
+    """The successor of state ``s`` drawn with the uniform ``u`` by inverse CDF over its CSR
+    row (``indptr``, ``indices``; ``cumulative``: the running sum of the data), clipped to
+    the row's last entry against rounding: the same draw as
+    :meth:`~planning.pomdp.generative.TabularGenerative.step`."""
+    start, stop = indptr[s], indptr[s + 1]
+    base = cumulative[start - 1] if start > 0 else 0.0
+    target = base + u * (cumulative[stop - 1] - base)
+    k = start
+    while k < stop - 1 and cumulative[k] <= target:
+        k += 1
+    return indices[k]
 
 
 @numba.njit(cache=True)
@@ -27,13 +46,7 @@ def tabular_blind_rollout(states, scenarios, depths, uniforms, max_depth, discou
             if terminal[s]:
                 break
             value += scale * R[s, action]
-            start, stop = indptr[s], indptr[s + 1]
-            base = cumulative[start - 1] if start > 0 else 0.0
-            target = base + uniforms[scenarios[i], t, 0] * (cumulative[stop - 1] - base)
-            k = start
-            while k < stop - 1 and cumulative[k] <= target:
-                k += 1
-            s = indices[k]
+            s = successor(indptr, indices, cumulative, s, uniforms[scenarios[i], t, 0])
             scale *= discount
         out[i] = value
     return out
@@ -48,13 +61,7 @@ def tabular_step(params, state, action, u, out):  # pragma: no cover (compiled)
     if terminal[s]:
         out[0] = s
         return 0.0, 0, True
-    start, stop = indptr[action, s], indptr[action, s + 1]
-    base = cumulative[action, start - 1] if start > 0 else 0.0
-    target = base + u[0] * (cumulative[action, stop - 1] - base)
-    k = start
-    while k < stop - 1 and cumulative[action, k] <= target:
-        k += 1
-    nxt = indices[action, k]
+    nxt = successor(indptr[action], indices[action], cumulative[action], s, u[0])
     o = 0
     while o < cum_z.shape[2] - 1 and u[1] >= cum_z[action, nxt, o]:
         o += 1
@@ -82,13 +89,8 @@ def tabular_rollout(params, states, scenarios, terminal_rows, depth, uniforms, m
             if terminal[s]:
                 break
             total += scale * R[s, blind]
-            start, stop = indptr[blind, s], indptr[blind, s + 1]
-            base = cumulative[blind, start - 1] if start > 0 else 0.0
-            target = base + uniforms[scenarios[i], t, 0] * (cumulative[blind, stop - 1] - base)
-            k = start
-            while k < stop - 1 and cumulative[blind, k] <= target:
-                k += 1
-            s = indices[blind, k]
+            s = successor(indptr[blind], indices[blind], cumulative[blind], s,
+                          uniforms[scenarios[i], t, 0])
             scale *= discount
     return total
 
@@ -124,13 +126,8 @@ def _qmdp_rollout_rows(states, scenarios, terminal_rows, depth, uniforms, max_de
             if not alive[i]:
                 continue
             out[i] += scale[i] * R[s[i], a]
-            start, stop = indptr[a, s[i]], indptr[a, s[i] + 1]
-            base = cumulative[a, start - 1] if start > 0 else 0.0
-            target = base + uniforms[scenarios[i], t, 0] * (cumulative[a, stop - 1] - base)
-            k = start
-            while k < stop - 1 and cumulative[a, k] <= target:
-                k += 1
-            s[i] = indices[a, k]
+            s[i] = successor(indptr[a], indices[a], cumulative[a], s[i],
+                             uniforms[scenarios[i], t, 0])
             scale[i] *= discount
             if terminal[s[i]]:
                 alive[i] = False
