@@ -90,7 +90,7 @@ class RelSettings:
     belief_particles: int = 3000
     solve_seconds: float = 300.0
     solve_trials: int | None = 300
-    despot_trials: int | None = 50
+    despot_trials: int | None = 200
     despot_seconds: float = 5.0
     despot_scenarios: int = 100
     despot_depth: int = 90
