@@ -22,8 +22,9 @@ def plot_rel(summary: dict, out: Path) -> None:
     ax.bar(range(len(names)), values, yerr=[rel[n]["discounted_value_ci95"] for n in names],
            color=["0.6", "tab:blue", "tab:orange"][:len(names)], capsize=4)
     ax.set_xticks(range(len(names)), [LABELS.get(n, n) for n in names])
-    ax.set_ylabel("discounted value, discrete model\n(axis inverted, as the thesis: shorter is better)")
-    ax.invert_yaxis()  # as the thesis: less negative is better, drawn higher
+    ax.set_ylabel("discounted value, discrete model\n"
+                  "(axis inverted, as the thesis: shorter is better)")
+    ax.invert_yaxis()  # as the thesis: less negative is better, drawn shorter
     ax.set_title(f"Rel-POMDP, {summary['settings']['horizon']} steps")
     save_figure(fig, out / "rel_value.png")
 
