@@ -30,6 +30,7 @@ from cmanip.run import add_episode_options, override_episode, override_solver, s
 from diagrams.herb.settings import POLICIES
 from experiments.closedloop_study import ClosedLoopSettings
 from experiments.handplan_study import PARTS as HANDPLAN_PARTS
+from experiments.latdespot_study import CONTINUOUS_ROLLOUTS
 from experiments.latdespot_study import PARTS as LATDESPOT_PARTS
 from experiments.mpf_study import PARTS as MPF_PARTS
 from experiments.visuotactile_study import PARTS as VISUOTACTILE_PARTS
@@ -152,6 +153,16 @@ def _register_latdespot(studies) -> None:
                    "DESPOT trials per decision", type=int)
     setting_option(lat, "--despot-seconds", rel.despot_seconds,
                    "DESPOT wall-clock cap per decision (s)", type=float)
+    setting_option(lat, "--continuous-despot-trials", rel.continuous_despot_trials,
+                   "DESPOT trials per decision on the continuous model "
+                   "(rel-despot-continuous)", type=int)
+    setting_option(lat, "--continuous-rollout", rel.continuous_rollout,
+                   "rel-despot-continuous's rollouts: Rel-QMDP on the discrete model from "
+                   "each scenario's cell, or on the continuous model (slow)",
+                   choices=list(CONTINUOUS_ROLLOUTS))
+    lat.add_argument("--workers", type=int, default=1,
+                     help="processes for rel-despot-continuous's episodes (the results do "
+                          "not depend on it)")
     lat.add_argument("--out", type=Path, required=True,
                      help="output directory (summary.json, figures, config.yaml)")
     lat.set_defaults(handler=_latdespot)
@@ -164,7 +175,9 @@ def resolve_latdespot(args: argparse.Namespace) -> LatDespotStudyConfig:
     rel = overridden(config.rel, args, {
         "trials": "trials", "seed": "seed", "horizon": "horizon", "problem": "problem",
         "solve_seconds": "solve_seconds", "solve_trials": "solve_trials",
-        "despot_trials": "despot_trials", "despot_seconds": "despot_seconds"})
+        "despot_trials": "despot_trials", "despot_seconds": "despot_seconds",
+        "continuous_despot_trials": "continuous_despot_trials",
+        "continuous_rollout": "continuous_rollout"})
     return overridden(replace(config, rel=rel), args, {"part": "part"})
 
 
@@ -172,14 +185,17 @@ def _latdespot(args: argparse.Namespace) -> int:
     from experiments.latdespot_study import run_rel
     from planning.hand.discretization import HandProblemSpec
 
+    if args.workers < 1:
+        raise ValueError(f"--workers must be >= 1, got {args.workers}")
     config = resolve_latdespot(args)
     HandProblemSpec.load(config.rel.problem)  # a bad file fails before any solving
-    summary = run_rel(config.rel, args.out)
+    summary = run_rel(config.rel, args.out, workers=args.workers)
     write_config(config, args.out)
     for name, r in summary["rel"].items():
         lo, hi = r["success_rate_ci95"]
-        print(f"  {name:11s} value {r['discounted_value']:7.2f} +- "
-              f"{r['discounted_value_ci95']:.2f}; success {r['success_rate']:.0%} "
+        print(f"  {name:21s} value {r['discounted_value']:7.2f} +- "
+              f"{r['discounted_value_ci95']:.2f} ({r['value_model']} model); "
+              f"success {r['success_rate']:.0%} "
               f"[{lo:.0%}, {hi:.0%}]; planning median {r['planning_ms_median']:.2f} ms")
     print(f"wrote {args.out}/summary.json, rel_value.png, rel_success.png, config.yaml")
     return 0

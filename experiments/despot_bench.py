@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from experiments.statistics import half_width
 from planning.pomdp.despot import DespotSettings
 from planning.pomdp.online import DespotPlanner, run_episode
 from planning.pomdp.problems import load_problem
@@ -82,7 +83,7 @@ def _ours(model, name, budget, *, episodes, steps, seed, scenarios, particles,
         recoveries += episode.recoveries
         crossings += episode.crossings_repaired
     returns = np.asarray(returns)
-    half = 1.96 * returns.std(ddof=1) / np.sqrt(len(returns)) if len(returns) > 1 else 0.0
+    half = half_width(returns)
     decision_ms = np.asarray(decision_ms)
     return {
         "discounted_return_mean": float(returns.mean()),

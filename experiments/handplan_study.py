@@ -31,7 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 from estimation.hand.manifolds import AnalyticManifold
-from experiments.statistics import wilson_interval
+from experiments.statistics import half_width, wilson_interval
 from experiments.timing import median_ms
 from models.planar.world import PlanarWorld
 from planning.hand.beliefs import (
@@ -154,7 +154,7 @@ def evaluate_discrete(problem: SolvedProblem, settings: HandplanSettings, *,
                                    episodes or 2 * settings.trials, settings.horizon,
                                    rng=_rng(settings, 11, _stream(name)))
         out[name] = {"discounted_value": float(returns.mean()),
-                     "discounted_value_ci95": _half_width(returns),
+                     "discounted_value_ci95": half_width(returns),
                      "episodes": len(returns)}
     return out
 
@@ -216,7 +216,7 @@ def evaluate_continuous(problem: SolvedProblem, beliefs: list[GaussianBelief],
             "success_rate": float(rate[-1]), "success_rate_ci95": [lo, hi],
             "success_over_time": rate.tolist(),
             "discounted_value": float(returns.mean()),
-            "discounted_value_ci95": _half_width(returns),
+            "discounted_value_ci95": half_width(returns),
             "trials": trials,
         }
         if precontact:
@@ -304,10 +304,6 @@ def _settings_dict(settings: HandplanSettings) -> dict:
     d = asdict(settings)
     d["spec"]["cell_theta_deg"] = float(np.rad2deg(d["spec"].pop("cell_theta_rad")))
     return d
-
-
-def _half_width(values: np.ndarray) -> float:
-    return float(1.96 * values.std(ddof=1) / np.sqrt(len(values))) if len(values) > 1 else 0.0
 
 
 def quick_settings(settings: HandplanSettings) -> HandplanSettings:

@@ -13,7 +13,12 @@ on the discrete model as the thesis did:
 - ``rel-sarsop``: the point-based solver (``planning.pomdp.point_based``);
 - ``rel-despot``: DESPOT with Rel-QMDP as its upper bound (the MDP value) and as its
   rollout policy (QMDP on each node's scenarios), from particles drawn from the discrete
-  belief at every step.
+  belief at every step;
+
+and, beyond the thesis, ``rel-despot-continuous``: DESPOT planning on the continuous model
+itself with the same bounds, tracking the object with the MPF
+(:mod:`experiments.latdespot_continuous`); its value is measured on the continuous model
+only (``value_model`` says which model each entry's ``discounted_value`` is on).
 
 Measures: the discounted value over ``horizon`` (100) steps on the discrete model (Fig.
 7.3a) and the success probability over time on the continuous planar pushing model
@@ -22,7 +27,7 @@ time per decision. Episode j of a policy is seeded from (seed, stream, j); DESPO
 budget is a trial count (``despot_trials``) so that results do not depend on the
 machine's speed, with a wall-clock cap (``despot_seconds``).
 
-Not done yet: Rel-DESPOT planning on the continuous model, and the Lat-POMDP parts.
+Not done yet: the Lat-POMDP parts (issue 16).
 """
 
 from __future__ import annotations
@@ -40,6 +45,7 @@ from experiments.handplan_study import (
     evaluate_continuous,
     evaluate_discrete,
 )
+from experiments.statistics import half_width, wilson_interval
 from experiments.timing import median_ms
 from models.planar.world import PlanarWorld
 from planning.hand.beliefs import GaussianBelief
@@ -54,7 +60,8 @@ from planning.pomdp.progress import SolverProgressBar
 from planning.pomdp.qmdp import solve_mdp
 
 PARTS = ("rel",)
-REL_POLICIES = ("rel-qmdp", "rel-sarsop", "rel-despot")
+REL_POLICIES = ("rel-qmdp", "rel-sarsop", "rel-despot", "rel-despot-continuous")
+CONTINUOUS_ROLLOUTS = ("discrete", "continuous")
 
 
 @dataclass(frozen=True)
@@ -75,7 +82,15 @@ class RelSettings:
             over 500 scenarios take about 0.5 s a decision) and D (90, as the benchmarks:
             with a reward of -1 a step, a shallower search's rollouts beat the
             infinite-horizon MDP value, and the upper bound stops being one);
-            despot_particles: the particles drawn from the discrete belief per decision.
+            despot_particles: the particles drawn from the discrete belief per decision,
+            and the MPF's particles for ``rel-despot-continuous``.
+        continuous_despot_trials: DESPOT's trial budget per decision on the continuous
+            model (each trial there steps the pushing model, about 1.3 ms an expansion of
+            100 scenarios x 4 actions; with 200 a decision took about 0.8 s median and
+            up to 5 s, the wall-clock cap); None: the cap alone.
+        continuous_rollout: ``discrete`` (Rel-QMDP rolled out on the discrete model from
+            each scenario's cell, compiled) or ``continuous`` (on the continuous model;
+            about 0.2 s an expansion): see :mod:`planning.hand.generative`.
     """
 
     trials: int = 500
@@ -95,6 +110,8 @@ class RelSettings:
     despot_scenarios: int = 100
     despot_depth: int = 90
     despot_particles: int = 1000
+    continuous_despot_trials: int | None = 50
+    continuous_rollout: str = "discrete"
 
     def __post_init__(self):
         if self.trials < 2 or self.horizon < 1:
@@ -104,6 +121,9 @@ class RelSettings:
                              f"{self.sensor_error_rate}")
         if min(self.belief_std) <= 0:
             raise ValueError("belief_std must be > 0")
+        if self.continuous_rollout not in CONTINUOUS_ROLLOUTS:
+            raise ValueError(f"continuous_rollout must be one of {CONTINUOUS_ROLLOUTS}, got "
+                             f"{self.continuous_rollout!r}")
 
 
 class DespotOnDiscreteBelief:
@@ -167,8 +187,11 @@ def solve_rel(settings: RelSettings, model: HandPOMDP, initial: np.ndarray
     return policies, costs
 
 
-def run_rel(settings: RelSettings, out: Path) -> dict:
-    """Part ``rel``: writes ``summary.json`` (``rel: {policy: {...}}``) and the PNGs."""
+def run_rel(settings: RelSettings, out: Path, *, workers: int = 1) -> dict:
+    """Part ``rel``: writes ``summary.json`` (``rel: {policy: {...}}``) and the PNGs;
+    ``workers`` processes run the continuous-model DESPOT's episodes (the results do not
+    depend on it)."""
+    from experiments.latdespot_continuous import run_continuous_episodes
     from experiments.latdespot_plots import plot_rel
 
     out.mkdir(parents=True, exist_ok=True)
@@ -183,7 +206,8 @@ def run_rel(settings: RelSettings, out: Path) -> dict:
                                      label="rel")
     rel = {}
     for name, policy in policies.items():
-        entry = {**discrete[name], "success_rate": continuous[name]["success_rate"],
+        entry = {**discrete[name], "value_model": "discrete",
+                 "success_rate": continuous[name]["success_rate"],
                  "success_rate_ci95": continuous[name]["success_rate_ci95"],
                  "success_over_time": continuous[name]["success_over_time"],
                  "continuous_discounted_value": continuous[name]["discounted_value"],
@@ -195,6 +219,8 @@ def run_rel(settings: RelSettings, out: Path) -> dict:
         else:
             entry["planning_ms_median"] = median_ms(lambda p=policy: p.act(initial), 50)
         rel[name] = entry
+    rel["rel-despot-continuous"] = summarise_continuous(
+        run_continuous_episodes(settings, workers=workers))
     summary = {"part": "rel", "settings": asdict(settings),
                "model": {"states": len(model.pomdp.states),
                          "actions": list(model.pomdp.actions),
@@ -203,3 +229,26 @@ def run_rel(settings: RelSettings, out: Path) -> dict:
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     plot_rel(summary, out)
     return summary
+
+
+def summarise_continuous(episodes) -> dict:
+    """The summary entry of ``rel-despot-continuous`` from its episodes
+    (:class:`~experiments.latdespot_continuous.ContinuousEpisode`): its value is the
+    continuous model's."""
+    success = np.stack([e.in_goal for e in episodes], axis=1)
+    returns = np.array([e.discounted_return for e in episodes])
+    lo, hi = wilson_interval(int(success[-1].sum()), len(episodes))
+    value, half = float(returns.mean()), float(half_width(returns))
+    planning = np.concatenate([e.planning_ms for e in episodes])
+    return {"discounted_value": value, "discounted_value_ci95": half,
+            "value_model": "continuous", "trials": len(episodes),
+            "success_rate": float(success[-1].mean()), "success_rate_ci95": [lo, hi],
+            "success_over_time": success.mean(axis=1).tolist(),
+            "continuous_discounted_value": value, "continuous_discounted_value_ci95": half,
+            "planning_ms_median": float(np.median(planning)),
+            "planning_ms_p99": float(np.percentile(planning, 99)),
+            "decisions": len(planning),
+            "despot_trials_median": float(np.median(np.concatenate(
+                [e.trials for e in episodes]))),
+            "crossings_repaired": int(sum(e.crossings_repaired for e in episodes)),
+            "degenerate_updates": int(sum(e.degenerate_updates for e in episodes))}

@@ -32,6 +32,7 @@ from estimation.hand.manifolds import (
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.factory import make_filter
 from experiments.mpf_plots import plot_part, plot_world
+from experiments.statistics import half_width
 from models.planar.world import PlanarWorld
 
 PARTS = ("compare", "resolution", "rate", "representations", "mixing")
@@ -242,8 +243,7 @@ def _mean_ci(values: np.ndarray) -> tuple[float, float]:
     values = values[np.isfinite(values)]
     if len(values) == 0:
         return float("nan"), float("nan")
-    half = 1.96 * values.std(ddof=1) / np.sqrt(len(values)) if len(values) > 1 else 0.0
-    return float(values.mean()), float(half)
+    return float(values.mean()), half_width(values)
 
 
 def summarise(condition: Condition, results: list[TrialResult]) -> dict:

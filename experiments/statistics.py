@@ -11,3 +11,10 @@ def wilson_interval(successes: int, n: int, z: float = 1.96) -> tuple[float, flo
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
     return float(centre - half), float(centre + half)
+
+
+def half_width(values: np.ndarray, z: float = 1.96) -> float:
+    """Half-width of the 95 % (``z = 1.96``) normal interval of the mean of ``values``
+    (0 for fewer than two values)."""
+    values = np.asarray(values, dtype=float)
+    return float(z * values.std(ddof=1) / np.sqrt(len(values))) if len(values) > 1 else 0.0

@@ -506,26 +506,30 @@ class Despot:
         scenarios: the default policy acts on each node's set (it may be open-loop over
         the node's belief, like the reference's particle-set policies). The model's
         compiled rollout runs all nodes at once, if it has one and the default policy is
-        its own; otherwise each node's rows are stepped together, depth by depth."""
+        its own; otherwise all nodes' rows are stepped in one ``step`` call per depth, each
+        node's default action chosen on its own live rows."""
         if self._compiled_rollout is not None:
             return np.where(terminal, 0.0, self._compiled_rollout(
                 states, scenarios, depths, offsets, self._uniforms, self.settings.depth))
         value = np.zeros(len(states))
-        for j in range(len(offsets) - 1):
-            rows = np.arange(offsets[j], offsets[j + 1])
-            node_states = states[rows].copy()
-            alive = ~terminal[rows]
-            depth, scale = int(depths[rows[0]]), 1.0
-            while alive.any() and depth < self.settings.depth:
-                live = np.flatnonzero(alive)
-                actions = action_array(self._default(node_states[live]), len(live))
-                step = self.model.step(node_states[live], actions,
-                                       self._uniforms[scenarios[rows[live]], depth])
-                value[rows[live]] += scale * step.rewards
-                node_states[live] = step.next_states
-                alive[live] = ~step.terminal
-                scale *= self._gamma
-                depth += 1
+        current = np.array(states, copy=True)
+        depth = np.array(depths, dtype=np.int64, copy=True)
+        scale = np.ones(len(states))
+        node = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
+        alive = ~np.asarray(terminal, dtype=bool) & (depth < self.settings.depth)
+        while alive.any():
+            live = np.flatnonzero(alive)  # ascending, so each node's rows are contiguous
+            actions = np.empty(len(live), dtype=np.int64)
+            cuts = np.flatnonzero(np.diff(node[live])) + 1
+            for rows in np.split(np.arange(len(live)), cuts):  # one call per node
+                actions[rows] = action_array(self._default(current[live[rows]]), len(rows))
+            step = self.model.step(current[live], actions,
+                                   self._uniforms[scenarios[live], depth[live]])
+            value[live] += scale[live] * step.rewards
+            current[live] = step.next_states
+            scale[live] *= self._gamma
+            depth[live] += 1
+            alive[live] = ~step.terminal & (depth[live] < self.settings.depth)
         return value
 
     def _expand(self, node: _BeliefNode) -> None:

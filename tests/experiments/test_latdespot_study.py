@@ -51,9 +51,15 @@ def test_rel_runs_end_to_end_and_replays_its_config(tmp_path, capsys):
     out = tmp_path / "rel"
     assert main(["experiment", "latdespot", "--part", "rel", "--trials", "4", "--horizon",
                  "6", "--problem", str(problem), "--solve-trials", "10", "--solve-seconds",
-                 "30", "--despot-trials", "5", "--out", str(out)]) == 0
+                 "30", "--despot-trials", "5", "--continuous-despot-trials", "5",
+                 "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
-    assert set(summary["rel"]) == {"rel-qmdp", "rel-sarsop", "rel-despot"}
+    assert set(summary["rel"]) == {"rel-qmdp", "rel-sarsop", "rel-despot",
+                                   "rel-despot-continuous"}
+    continuous = summary["rel"]["rel-despot-continuous"]
+    assert continuous["value_model"] == "continuous" and continuous["decisions"] == 4 * 6
+    assert continuous["despot_trials_median"] <= 5
+    assert continuous["discounted_value"] == continuous["continuous_discounted_value"]
     for entry in summary["rel"].values():
         for key in ("discounted_value", "discounted_value_ci95", "success_rate",
                     "success_rate_ci95", "planning_ms_median"):
@@ -63,4 +69,5 @@ def test_rel_runs_end_to_end_and_replays_its_config(tmp_path, capsys):
     assert (out / "rel_value.png").is_file() and (out / "rel_success.png").is_file()
     config = yaml.safe_load((out / "config.yaml").read_text())
     assert config["rel"]["trials"] == 4 and config["rel"]["problem"] == str(problem)
+    assert config["rel"]["continuous_despot_trials"] == 5
     assert "rel-despot" in capsys.readouterr().out

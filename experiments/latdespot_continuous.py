@@ -1,0 +1,123 @@
+"""Rel-DESPOT planning on the continuous planar model (``rel-despot-continuous``), beyond
+the thesis: its episodes for ``cmanip experiment latdespot --part rel``.
+
+The thesis' policies plan on the discrete Rel-POMDP and track the discrete belief (sec.
+6.4.1); this one plans with DESPOT on the continuous model itself
+(:class:`~planning.hand.generative.ContinuousHandGenerative`, Rel-QMDP as its upper bound
+and rollout policy, as the thesis' Rel-DESPOT) and tracks the object with the project's
+manifold particle filter (thesis Alg. 4.2, analytic manifold: the sensors discriminate
+contact perfectly, so a conventional filter's particles would rarely land on the contact
+manifold). Episode j is seeded from (seed, 19, j) and depends on nothing else, so episodes
+run in any number of processes (spawned; each builds the model once from the settings).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+from dataclasses import dataclass
+
+import numpy as np
+from tqdm import tqdm
+
+from estimation.hand.manifolds import AnalyticManifold
+from estimation.particles.belief import ParticleBelief
+from estimation.particles.factory import make_filter
+from planning.hand.generative import ContinuousHandGenerative
+from planning.pomdp.despot import DespotSettings
+from planning.pomdp.online import DespotPlanner
+
+EPISODE_STREAM = 19
+
+
+@dataclass(frozen=True)
+class ContinuousEpisode:
+    """One episode of Rel-DESPOT on the continuous model.
+
+    Attributes:
+        in_goal: (horizon + 1,) bool, the object's centre in the goal before each step
+            and after the last.
+        discounted_return: sum_t gamma^t R(s_t) on the continuous model.
+        planning_ms: (horizon,) wall time of each decision (ms).
+        trials: (horizon,) DESPOT trials of each decision.
+        crossings_repaired: bound crossings the searches repaired.
+        degenerate_updates: filter updates where no particle explained the reading.
+    """
+
+    in_goal: np.ndarray
+    discounted_return: float
+    planning_ms: np.ndarray
+    trials: np.ndarray
+    crossings_repaired: int
+    degenerate_updates: int
+
+
+class _Episodes:
+    """What one process needs to run episodes, built once from the settings."""
+
+    def __init__(self, settings):
+        from experiments.latdespot_study import build_rel_problem
+
+        self.settings = settings
+        model, self.belief, _ = build_rel_problem(settings)
+        self.model = model
+        self.generative = ContinuousHandGenerative(model, self.belief,
+                                                   rollout=settings.continuous_rollout)
+        self.planner = DespotPlanner(self.generative, DespotSettings(
+            scenarios=settings.despot_scenarios, depth=settings.despot_depth,
+            max_trials=settings.continuous_despot_trials, seconds=settings.despot_seconds))
+        world = model.world
+        self.filter = make_filter("mpf", world, AnalyticManifold(world))
+
+    def run(self, episode: int) -> ContinuousEpisode:
+        s, model, world = self.settings, self.model, self.model.world
+        rng = np.random.default_rng([s.seed, EPISODE_STREAM, episode])
+        state = self.belief.sample(world, 1, rng=rng)
+        belief = ParticleBelief.uniform(self.belief.sample(world, s.despot_particles, rng=rng))
+        vectors = self.generative.vectors
+        in_goal = np.zeros(s.horizon + 1, dtype=bool)
+        in_goal[0] = model.in_goal(state)[0]
+        planning_ms, trials = np.zeros(s.horizon), np.zeros(s.horizon)
+        total, crossings, degenerate = 0.0, 0, 0
+        for t in range(s.horizon):
+            result = self.planner.plan(belief.resample(rng=rng).states, rng=rng)
+            planning_ms[t], trials[t] = result.planning_ms, result.stats["trials"]
+            crossings += result.stats["crossings_repaired"]
+            total -= model.spec.discount ** t * (not in_goal[t])
+            action = vectors[result.action]
+            state = world.sample_step(state, action, rng=rng)
+            reading = world.sample_observation(state, rng.random((1, 2)))[0]
+            belief, diagnostics = self.filter.update(belief, action, reading, rng=rng)
+            degenerate += diagnostics.degenerate
+            in_goal[t + 1] = model.in_goal(state)[0]
+        return ContinuousEpisode(in_goal, total, planning_ms, trials, crossings, degenerate)
+
+
+_WORKER: _Episodes | None = None
+
+
+def _start_worker(settings) -> None:
+    global _WORKER
+    _WORKER = _Episodes(settings)
+
+
+def _run_episode(episode: int) -> ContinuousEpisode:
+    return _WORKER.run(episode)
+
+
+def run_continuous_episodes(settings, *, workers: int = 1) -> list[ContinuousEpisode]:
+    """``settings.trials`` episodes (in episode order) in ``workers`` processes."""
+    bar = tqdm(total=settings.trials, desc="rel rel-despot-continuous", unit="episode")
+    episodes = []
+    if workers <= 1:
+        runner = _Episodes(settings)
+        for j in range(settings.trials):
+            episodes.append(runner.run(j))
+            bar.update()
+    else:
+        context = multiprocessing.get_context("spawn")
+        with context.Pool(workers, initializer=_start_worker, initargs=(settings,)) as pool:
+            for episode in pool.imap(_run_episode, range(settings.trials)):
+                episodes.append(episode)
+                bar.update()
+    bar.close()
+    return episodes
