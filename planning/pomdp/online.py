@@ -1,13 +1,18 @@
 """Online planning with DESPOT: the planner of the ``Planner`` seam, the particle belief
 it plans from, and the closed loop that runs episodes on a generative POMDP.
 
-The belief between decisions is a set of N equally weighted particles (states). After
-action ``a`` and observation ``o`` (:func:`update_particles`): every particle is stepped
-with fresh uniforms, weighted by ``p(o | s', a)`` and resampled (systematic resampling) to
-N. When every particle dies (no particle explains ``o``) the update *ignores the
-observation*: the stepped particles are kept unweighted, and the recovery is counted (in
-:attr:`Episode.recoveries`). That keeps the planner going on a model whose belief has
-drifted; a count above zero says the belief is no longer the posterior.
+The belief between decisions is a set of N weighted particles (states), as the reference
+DESPOT's ``ParticleBelief`` keeps it. After action ``a`` and observation ``o``
+(:func:`update_particles`): every particle is stepped with fresh uniforms and its weight
+multiplied by ``p(o | s', a)``; the set is resampled (systematic resampling, equal weights
+after) only when the effective sample size falls below half of N (the reference's rule).
+Resampling at every step instead would, on a model with deterministic transitions
+(RockSample's rocks never change), discard rock configurations for good on each noisy
+reading (sample impoverishment), which nothing afterwards can undo. When every particle dies
+(no particle explains ``o``) the update *ignores the observation*: the stepped particles
+keep their prior weights, and the recovery is counted (in :attr:`Episode.recoveries`).
+That keeps the planner going on a model whose belief has drifted; a count above zero says
+the belief is no longer the posterior.
 """
 
 from __future__ import annotations
@@ -30,19 +35,38 @@ def systematic_resample(weights: np.ndarray, count: int, rng: np.random.Generato
     return np.minimum(np.searchsorted(cumulative, positions, side="right"), len(weights) - 1)
 
 
+RESAMPLE_BELOW = 0.5
+"""Resample the belief when its effective sample size falls below this fraction of N."""
+
+
 def update_particles(model: GenerativePOMDP, particles: np.ndarray, action: int,
-                     observation: int, *, rng: np.random.Generator
-                     ) -> tuple[np.ndarray, bool]:
-    """The particle belief after ``action`` and ``observation``; returns (particles
-    (N, d), whether the update had to recover by ignoring the observation)."""
-    u = rng.random((len(particles), model.uniforms_per_step))
+                     observation: int, *, rng: np.random.Generator,
+                     weights: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The particle belief after ``action`` and ``observation`` (see the module docstring).
+
+    Args:
+        particles: (N, d) states; weights: (N,) their weights (None: equal).
+
+    Returns:
+        (particles (N, d), normalised weights (N,), whether the update had to recover by
+        ignoring the observation).
+    """
+    n = len(particles)
+    prior = np.full(n, 1.0 / n) if weights is None else np.asarray(weights, dtype=float)
+    prior = prior / prior.sum()
+    u = rng.random((n, model.uniforms_per_step))
     stepped = model.step(particles, action, u).next_states
     log_w = model.log_likelihood(observation, stepped, action)
-    if not np.isfinite(log_w).any():
-        return stepped, True
-    w = np.exp(log_w - log_w[np.isfinite(log_w)].max())
-    w[~np.isfinite(log_w)] = 0.0
-    return stepped[systematic_resample(w, len(particles), rng)], False
+    live = np.isfinite(log_w) & (prior > 0)
+    if not live.any():
+        return stepped, prior, True
+    w = np.zeros(n)
+    w[live] = prior[live] * np.exp(log_w[live] - log_w[live].max())
+    w /= w.sum()
+    if 1.0 / np.sum(w * w) >= RESAMPLE_BELOW * n:
+        return stepped, w, False
+    return stepped[systematic_resample(w, n, rng)], np.full(n, 1.0 / n), False
 
 
 @dataclass(frozen=True)
@@ -77,16 +101,18 @@ class DespotPlanner:
 
     def plan(self, belief: np.ndarray, *, rng: np.random.Generator,
              memory: DespotMemory | None = None, observation: int | None = None,
-             **context) -> PlanResult:
-        """The decision for the particle belief ``belief`` (N, d). With subtree reuse,
-        ``observation`` (received after the last decision's action) selects the subtree."""
+             weights: np.ndarray | None = None, **context) -> PlanResult:
+        """The decision for the particle belief ``belief`` (N, d) with ``weights`` (N,)
+        (None: equal). With subtree reuse, ``observation`` (received after the last
+        decision's action) selects the subtree."""
         start = time.perf_counter()
         memory = memory or DespotMemory()
         previous = None
         if (self.settings.reuse == "subtree" and memory.tree is not None
                 and observation is not None):
             previous = self.search.subtree(memory.tree, memory.action, observation, rng=rng)
-        action, stats, tree = self.search.search(belief, rng=rng, previous=previous)
+        action, stats, tree = self.search.search(belief, rng=rng, weights=weights,
+                                                 previous=previous)
         ranking = self.search.ranking(tree.root)
         if ranking is None or ranking[0] != action:
             ranking = (action, *[a for a in range(len(self.model.actions)) if a != action])
@@ -135,6 +161,7 @@ def run_episode(model: GenerativePOMDP, planner: DespotPlanner, *, rng: np.rando
     only the observations (its belief: :func:`update_particles`)."""
     state = model.sample_initial(1, rng=rng)
     belief = model.sample_initial(particles, rng=rng)
+    weights = None
     memory, observation = None, None
     total = undiscounted = 0.0
     scale = 1.0
@@ -144,7 +171,8 @@ def run_episode(model: GenerativePOMDP, planner: DespotPlanner, *, rng: np.rando
     for _ in range(steps):
         if model.is_terminal(state)[0]:
             break
-        result = planner.plan(belief, rng=rng, memory=memory, observation=observation)
+        result = planner.plan(belief, rng=rng, memory=memory, observation=observation,
+                              weights=weights)
         memory = result.memory
         stats = result.stats
         records["decision_ms"].append(result.planning_ms)
@@ -157,8 +185,8 @@ def run_episode(model: GenerativePOMDP, planner: DespotPlanner, *, rng: np.rando
         undiscounted += float(step.rewards[0])
         scale *= model.discount
         state, observation = step.next_states, int(step.observations[0])
-        belief, recovered = update_particles(model, belief, result.action, observation,
-                                             rng=rng)
+        belief, weights, recovered = update_particles(model, belief, result.action,
+                                                      observation, rng=rng, weights=weights)
         recoveries += recovered
         taken += 1
     return Episode(total, undiscounted, taken,

@@ -194,8 +194,9 @@ def test_subtree_reuse_rescales_the_kept_tree():
     state = model.sample_initial(1, rng=rng)
     step = model.step(state, first.action, rng.random((1, 1)))
     observation = int(step.observations[0])
-    belief, _ = update_particles(model, belief, first.action, observation, rng=rng)
-    second = planner.plan(belief, rng=rng, memory=first.memory, observation=observation)
+    belief, weights, _ = update_particles(model, belief, first.action, observation, rng=rng)
+    second = planner.plan(belief, rng=rng, memory=first.memory, observation=observation,
+                          weights=weights)
     assert second.stats["reused"]
     root = second.memory.tree.root
     assert root.depth == 0 and len(root.scenarios) == second.memory.tree.scenarios
@@ -207,8 +208,36 @@ def test_the_belief_recovers_when_no_particle_explains_the_observation():
     model = Tag()
     rng = np.random.default_rng(8)
     particles = np.array([[0, 5]] * 50)  # robot in cell 0: "robot at 20" is impossible
-    updated, recovered = update_particles(model, particles, 4, 20, rng=rng)
+    updated, weights, recovered = update_particles(model, particles, 4, 20, rng=rng)
     assert recovered and updated.shape == particles.shape
+    np.testing.assert_allclose(weights, 1 / 50)
+
+
+def test_the_belief_is_exact_bayes_on_deterministic_transitions_until_it_resamples():
+    """RockSample's rocks never change: after one noisy check the weights are the
+    posterior's and every configuration is kept (the effective sample size stays above
+    half); a run of checks that all say "good" ends in a resampled set of equal weights."""
+    model = RockSample(7, 8)
+    rng = np.random.default_rng(10)
+    particles = model.sample_initial(400, rng=rng)
+    check = model.actions.index("check0")
+    good = (particles[:, 2] & 1) == 1
+    updated, weights, recovered = update_particles(model, particles, check, 1, rng=rng)
+    assert not recovered
+    np.testing.assert_array_equal(updated, particles)  # not resampled
+    expected = np.exp(model.log_likelihood(1, particles, check))
+    np.testing.assert_allclose(weights, expected / expected.sum())
+    assert weights[good].min() > weights[~good].max()
+    for step in range(10):  # rocks 0 and 1 good, again and again: a quarter of the set
+        rock = model.actions.index(f"check{step % 2}")
+        updated, weights, recovered = update_particles(model, updated, rock, 1, rng=rng,
+                                                       weights=weights)
+        if 1 / np.sum(weights ** 2) < 400 / 2:
+            raise AssertionError("the set should have been resampled")
+        if np.all(weights == weights[0]):
+            break
+    np.testing.assert_allclose(weights, 1 / 400)  # resampled once the ESS fell below half
+    assert np.mean((updated[:, 2] & 3) == 3) > 0.9
 
 
 def resident_mb() -> float:
