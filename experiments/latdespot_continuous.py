@@ -52,13 +52,12 @@ class ContinuousEpisode:
 
 
 class _Episodes:
-    """What one process needs to run episodes, built once from the settings."""
+    """What one process needs to run episodes, built once from the settings with
+    ``build(settings) -> (HandPOMDP, GaussianBelief, ...)``."""
 
-    def __init__(self, settings):
-        from experiments.latdespot_study import build_rel_problem
-
+    def __init__(self, settings, build):
         self.settings = settings
-        model, self.belief, _ = build_rel_problem(settings)
+        model, self.belief, _ = build(settings)
         self.model = model
         self.generative = ContinuousHandGenerative(model, self.belief,
                                                    rollout=settings.continuous_rollout)
@@ -95,27 +94,31 @@ class _Episodes:
 _WORKER: _Episodes | None = None
 
 
-def _start_worker(settings) -> None:
+def _start_worker(settings, build) -> None:
     global _WORKER
-    _WORKER = _Episodes(settings)
+    _WORKER = _Episodes(settings, build)
 
 
 def _run_episode(episode: int) -> ContinuousEpisode:
     return _WORKER.run(episode)
 
 
-def run_continuous_episodes(settings, *, workers: int = 1) -> list[ContinuousEpisode]:
-    """``settings.trials`` episodes (in episode order) in ``workers`` processes."""
+def run_continuous_episodes(settings, build, *, workers: int = 1
+                            ) -> list[ContinuousEpisode]:
+    """``settings.trials`` episodes (in episode order) in ``workers`` processes, each
+    building the problem with ``build(settings)`` (a module-level function, so that it
+    reaches spawned processes by name; e.g.
+    :func:`experiments.latdespot_study.build_rel_problem`)."""
     bar = tqdm(total=settings.trials, desc="rel rel-despot-continuous", unit="episode")
     episodes = []
     if workers <= 1:
-        runner = _Episodes(settings)
+        runner = _Episodes(settings, build)
         for j in range(settings.trials):
             episodes.append(runner.run(j))
             bar.update()
     else:
         context = multiprocessing.get_context("spawn")
-        with context.Pool(workers, initializer=_start_worker, initargs=(settings,)) as pool:
+        with context.Pool(workers, initializer=_start_worker, initargs=(settings, build)) as pool:
             for episode in pool.imap(_run_episode, range(settings.trials)):
                 episodes.append(episode)
                 bar.update()

@@ -48,5 +48,5 @@ def plot_rel(summary: dict, out: Path) -> None:
     ax.set_xlabel("step")
     ax.set_ylabel("Pr(object in goal), continuous model")
     ax.set_ylim(0, 1)
-    ax.legend(loc="lower right")
+    ax.legend(loc="upper left", fontsize=8)  # the discrete planners oscillate below
     save_figure(fig, out / "rel_success.png")

@@ -220,7 +220,7 @@ def run_rel(settings: RelSettings, out: Path, *, workers: int = 1) -> dict:
             entry["planning_ms_median"] = median_ms(lambda p=policy: p.act(initial), 50)
         rel[name] = entry
     rel["rel-despot-continuous"] = summarise_continuous(
-        run_continuous_episodes(settings, workers=workers))
+        run_continuous_episodes(settings, build_rel_problem, workers=workers))
     summary = {"part": "rel", "settings": asdict(settings),
                "model": {"states": len(model.pomdp.states),
                          "actions": list(model.pomdp.actions),

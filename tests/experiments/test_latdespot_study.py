@@ -71,3 +71,18 @@ def test_rel_runs_end_to_end_and_replays_its_config(tmp_path, capsys):
     assert config["rel"]["trials"] == 4 and config["rel"]["problem"] == str(problem)
     assert config["rel"]["continuous_despot_trials"] == 5
     assert "rel-despot" in capsys.readouterr().out
+
+
+def test_continuous_episodes_do_not_depend_on_the_worker_count(tmp_path):
+    from experiments.latdespot_continuous import run_continuous_episodes
+    from experiments.latdespot_study import RelSettings, build_rel_problem
+
+    problem = tmp_path / "small.yaml"
+    problem.write_text(SMALL)
+    settings = RelSettings(trials=3, horizon=4, problem=str(problem),
+                           continuous_despot_trials=3)
+    alone = run_continuous_episodes(settings, build_rel_problem, workers=1)
+    spread = run_continuous_episodes(settings, build_rel_problem, workers=2)
+    for a, b in zip(alone, spread, strict=True):
+        np.testing.assert_array_equal(a.in_goal, b.in_goal)
+        assert a.discounted_return == b.discounted_return
