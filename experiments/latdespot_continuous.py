@@ -22,6 +22,7 @@ from tqdm import tqdm
 from estimation.hand.manifolds import AnalyticManifold
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.factory import make_filter
+from experiments.statistics import half_width, wilson_interval
 from planning.hand.generative import ContinuousHandGenerative
 from planning.pomdp.despot import DespotSettings
 from planning.pomdp.online import DespotPlanner
@@ -124,3 +125,25 @@ def run_continuous_episodes(settings, build, *, workers: int = 1
                 bar.update()
     bar.close()
     return episodes
+
+
+def summarise_episodes(episodes: list[ContinuousEpisode]) -> dict:
+    """The summary entry of ``rel-despot-continuous`` from its episodes
+    (its value is the continuous model's), in the study's summary format."""
+    success = np.stack([e.in_goal for e in episodes], axis=1)
+    returns = np.array([e.discounted_return for e in episodes])
+    lo, hi = wilson_interval(int(success[-1].sum()), len(episodes))
+    value, half = float(returns.mean()), float(half_width(returns))
+    planning = np.concatenate([e.planning_ms for e in episodes])
+    return {"discounted_value": value, "discounted_value_ci95": half,
+            "value_model": "continuous", "trials": len(episodes),
+            "success_rate": float(success[-1].mean()), "success_rate_ci95": [lo, hi],
+            "success_over_time": success.mean(axis=1).tolist(),
+            "continuous_discounted_value": value, "continuous_discounted_value_ci95": half,
+            "planning_ms_median": float(np.median(planning)),
+            "planning_ms_p99": float(np.percentile(planning, 99)),
+            "decisions": len(planning),
+            "despot_trials_median": float(np.median(np.concatenate(
+                [e.trials for e in episodes]))),
+            "crossings_repaired": int(sum(e.crossings_repaired for e in episodes)),
+            "degenerate_updates": int(sum(e.degenerate_updates for e in episodes))}

@@ -45,7 +45,7 @@ from experiments.handplan_study import (
     evaluate_continuous,
     evaluate_discrete,
 )
-from experiments.statistics import half_width, wilson_interval
+from experiments.latdespot_continuous import run_continuous_episodes, summarise_episodes
 from experiments.timing import median_ms
 from models.planar.world import PlanarWorld
 from planning.hand.beliefs import GaussianBelief
@@ -60,7 +60,6 @@ from planning.pomdp.progress import SolverProgressBar
 from planning.pomdp.qmdp import solve_mdp
 
 PARTS = ("rel",)
-REL_POLICIES = ("rel-qmdp", "rel-sarsop", "rel-despot", "rel-despot-continuous")
 CONTINUOUS_ROLLOUTS = ("discrete", "continuous")
 
 
@@ -86,8 +85,8 @@ class RelSettings:
             and the MPF's particles for ``rel-despot-continuous``.
         continuous_despot_trials: DESPOT's trial budget per decision on the continuous
             model (each trial there steps the pushing model, about 1.3 ms an expansion of
-            100 scenarios x 4 actions; with 200 a decision took about 0.8 s median and
-            up to 5 s, the wall-clock cap); None: the cap alone.
+            100 scenarios x 4 actions; with 50, decisions took 0.76 s median and 2.1 s
+            p99 over 50 episodes); None: the wall-clock cap alone.
         continuous_rollout: ``discrete`` (Rel-QMDP rolled out on the discrete model from
             each scenario's cell, compiled) or ``continuous`` (on the continuous model;
             about 0.2 s an expansion): see :mod:`planning.hand.generative`.
@@ -191,7 +190,6 @@ def run_rel(settings: RelSettings, out: Path, *, workers: int = 1) -> dict:
     """Part ``rel``: writes ``summary.json`` (``rel: {policy: {...}}``) and the PNGs;
     ``workers`` processes run the continuous-model DESPOT's episodes (the results do not
     depend on it)."""
-    from experiments.latdespot_continuous import run_continuous_episodes
     from experiments.latdespot_plots import plot_rel
 
     out.mkdir(parents=True, exist_ok=True)
@@ -219,7 +217,7 @@ def run_rel(settings: RelSettings, out: Path, *, workers: int = 1) -> dict:
         else:
             entry["planning_ms_median"] = median_ms(lambda p=policy: p.act(initial), 50)
         rel[name] = entry
-    rel["rel-despot-continuous"] = summarise_continuous(
+    rel["rel-despot-continuous"] = summarise_episodes(
         run_continuous_episodes(settings, build_rel_problem, workers=workers))
     summary = {"part": "rel", "settings": asdict(settings),
                "model": {"states": len(model.pomdp.states),
@@ -230,25 +228,3 @@ def run_rel(settings: RelSettings, out: Path, *, workers: int = 1) -> dict:
     plot_rel(summary, out)
     return summary
 
-
-def summarise_continuous(episodes) -> dict:
-    """The summary entry of ``rel-despot-continuous`` from its episodes
-    (:class:`~experiments.latdespot_continuous.ContinuousEpisode`): its value is the
-    continuous model's."""
-    success = np.stack([e.in_goal for e in episodes], axis=1)
-    returns = np.array([e.discounted_return for e in episodes])
-    lo, hi = wilson_interval(int(success[-1].sum()), len(episodes))
-    value, half = float(returns.mean()), float(half_width(returns))
-    planning = np.concatenate([e.planning_ms for e in episodes])
-    return {"discounted_value": value, "discounted_value_ci95": half,
-            "value_model": "continuous", "trials": len(episodes),
-            "success_rate": float(success[-1].mean()), "success_rate_ci95": [lo, hi],
-            "success_over_time": success.mean(axis=1).tolist(),
-            "continuous_discounted_value": value, "continuous_discounted_value_ci95": half,
-            "planning_ms_median": float(np.median(planning)),
-            "planning_ms_p99": float(np.percentile(planning, 99)),
-            "decisions": len(planning),
-            "despot_trials_median": float(np.median(np.concatenate(
-                [e.trials for e in episodes]))),
-            "crossings_repaired": int(sum(e.crossings_repaired for e in episodes)),
-            "degenerate_updates": int(sum(e.degenerate_updates for e in episodes))}
