@@ -25,7 +25,7 @@ from cmanip.config import (
     overridden,
     write_config,
 )
-from cmanip.options import setting_option, subcommand
+from cmanip.options import setting_option, subcommand, workers_option
 from cmanip.run import add_episode_options, override_episode, override_solver, solve
 from diagrams.herb.settings import POLICIES
 from experiments.closedloop_study import ClosedLoopSettings
@@ -54,8 +54,7 @@ def register(commands) -> None:
     setting_option(mpf, "--trials", MPF.trials, "trials per condition", type=int)
     setting_option(mpf, "--seed", MPF.seed, "study seed; trial j is seeded from (seed, j)",
                    type=int)
-    mpf.add_argument("--workers", type=int, default=1,
-                     help="processes (the results do not depend on it)")
+    workers_option(mpf)
     setting_option(mpf, "--object", MPF.trial.object, "object name or path to a YAML")
     setting_option(mpf, "--sensors", MPF.trial.sensors,
                    "planar sensor layout (low, medium, high or a YAML path)")
@@ -160,9 +159,7 @@ def _register_latdespot(studies) -> None:
                    "rel-despot-continuous's rollouts: Rel-QMDP on the discrete model from "
                    "each scenario's cell, or on the continuous model (slow)",
                    choices=list(CONTINUOUS_ROLLOUTS))
-    lat.add_argument("--workers", type=int, default=1,
-                     help="processes for rel-despot-continuous's episodes (the results do "
-                          "not depend on it)")
+    workers_option(lat, "processes for rel-despot-continuous's episodes")
     lat.add_argument("--out", type=Path, required=True,
                      help="output directory (summary.json, figures, config.yaml)")
     lat.set_defaults(handler=_latdespot)
@@ -185,8 +182,6 @@ def _latdespot(args: argparse.Namespace) -> int:
     from experiments.latdespot_study import run_rel
     from planning.hand.discretization import HandProblemSpec
 
-    if args.workers < 1:
-        raise ValueError(f"--workers must be >= 1, got {args.workers}")
     config = resolve_latdespot(args)
     HandProblemSpec.load(config.rel.problem)  # a bad file fails before any solving
     summary = run_rel(config.rel, args.out, workers=args.workers)
@@ -227,8 +222,6 @@ def resolve_mpf(args: argparse.Namespace) -> MpfStudyConfig:
 def _mpf(args: argparse.Namespace) -> int:
     from experiments.mpf_study import run_study
 
-    if args.workers < 1:
-        raise ValueError(f"--workers must be >= 1, got {args.workers}")
     config = resolve_mpf(args)
     summary = run_study(config.part, config.trial, config.trials, config.seed, args.workers,
                         args.out, progress=not args.no_progress)

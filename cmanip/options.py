@@ -20,6 +20,19 @@ def subcommand(parent, name: str, help: str, description: str | None = None):
                              formatter_class=HelpFormatter)
 
 
+def workers_option(parser, what: str = "processes") -> None:
+    """``--workers N`` (N >= 1; default 1): how many processes run a study's trials; the
+    results do not depend on it. A value below 1 is a usage error (exit 2)."""
+    def count(text: str) -> int:
+        value = int(text)
+        if value < 1:
+            raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+        return value
+
+    parser.add_argument("--workers", type=count, default=1,
+                        help=f"{what} (the results do not depend on it)")
+
+
 def setting_option(parser, flag: str, default, help: str, **kwargs) -> None:
     """An option that overrides a setting only when given: its value defaults to
     ``argparse.SUPPRESS`` (absent from the namespace), and its help shows the setting's

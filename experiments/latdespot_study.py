@@ -120,6 +120,10 @@ class RelSettings:
                              f"{self.sensor_error_rate}")
         if min(self.belief_std) <= 0:
             raise ValueError("belief_std must be > 0")
+        for name in ("despot_trials", "continuous_despot_trials"):
+            value = getattr(self, name)
+            if value is not None and value < 1:
+                raise ValueError(f"{name} must be >= 1 or None, got {value}")
         if self.continuous_rollout not in CONTINUOUS_ROLLOUTS:
             raise ValueError(f"continuous_rollout must be one of {CONTINUOUS_ROLLOUTS}, got "
                              f"{self.continuous_rollout!r}")

@@ -77,6 +77,9 @@ def test_visuotactile_reads_its_rig_once_at_the_top(tmp_path):
     ("mpf", "trial:\n  particle: 5\n", "trial.particle"),
     ("handplan", "study:\n  spec:\n    discount: high\n", "study.spec.discount"),
     ("visuotactile", "study:\n  trials: [1]\n", "study.trials"),
+    ("latdespot", "rel:\n  continuous_rollout: fast\n", "continuous_rollout"),
+    ("latdespot", "rel:\n  continuous_despot_trials: -3\n", "continuous_despot_trials"),
+    ("latdespot", "rel:\n  continuous_despot_trials: many\n", "rel.continuous_despot_trials"),
 ])
 def test_a_bad_study_config_names_the_file_and_field(tmp_path, capsys, study, text, field):
     path = tmp_path / "bad.yaml"
@@ -85,3 +88,14 @@ def test_a_bad_study_config_names_the_file_and_field(tmp_path, capsys, study, te
                  str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert str(path) in err and field in err
+
+
+@pytest.mark.parametrize("option", [["--workers", "0"], ["--continuous-rollout", "fast"],
+                                    ["--continuous-despot-trials", "0"]])
+def test_bad_latdespot_options_are_usage_errors(tmp_path, capsys, option):
+    with pytest.raises(SystemExit) as exit_:
+        status = main(["experiment", "latdespot", *option, "--out", str(tmp_path / "o")])
+        raise SystemExit(status)
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err  # names the option, or the setting it overrides
+    assert option[0] in err or option[0][2:].replace("-", "_") in err
