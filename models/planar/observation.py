@@ -126,6 +126,11 @@ def observation_key(observation: np.ndarray) -> int:
     return int((np.asarray(observation, dtype=np.int64) << np.arange(len(observation))).sum())
 
 
+def observation_reading(key: int, sensor_count: int) -> np.ndarray:
+    """(S,) boolean observation of the key :func:`observation_key` gives it."""
+    return (int(key) >> np.arange(sensor_count)) & 1 == 1
+
+
 def observation_keys(observations: np.ndarray) -> np.ndarray:
     """(K,) integer keys of (K, S) boolean observations."""
     obs = np.asarray(observations, dtype=np.int64)

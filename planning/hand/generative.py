@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from models.planar.observation import observation_keys
+from models.planar.observation import observation_keys, observation_reading
 from planning.hand.beliefs import GaussianBelief
 from planning.hand.model import HandPOMDP
 from planning.pomdp.generative import GenerativeStep, TabularGenerative, action_array
@@ -87,13 +87,10 @@ class ContinuousHandGenerative:
         return GenerativeStep(next_states, rewards, observation_keys(readings),
                               np.zeros(len(states), dtype=bool))
 
-    def reading(self, observation: int) -> np.ndarray:
-        """(S,) bool sensor reading of an observation code."""
-        return (int(observation) >> np.arange(self.world.sensor_count)) & 1 == 1
-
     def log_likelihood(self, observation: int, states: np.ndarray,
                        action: int) -> np.ndarray:
-        return self.world.log_likelihood(self.reading(observation), np.asarray(states),
+        reading = observation_reading(observation, self.world.sensor_count)
+        return self.world.log_likelihood(reading, np.asarray(states),
                                          self.vectors[action])
 
     def sample_initial(self, n: int, *, rng: np.random.Generator) -> np.ndarray:

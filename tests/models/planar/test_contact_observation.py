@@ -30,3 +30,11 @@ def test_log_likelihood_of_matching_wrong_and_impossible_readings(box_world):
 def test_observation_keys_agree():
     obs = np.array([[True, False, True], [False, False, False]])
     assert list(observation_keys(obs)) == [observation_key(obs[0]), 0] == [5, 0]
+
+
+def test_observation_readings_invert_their_keys():
+    from models.planar.observation import observation_key, observation_reading
+
+    for key in range(8):
+        reading = observation_reading(key, 3)
+        assert reading.dtype == bool and observation_key(reading) == key
