@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from models.planar.observation import observation_key, observation_keys
+from models.planar.observation import observation_key, observation_keys, observation_reading
 
 
 def test_no_false_positive_in_free_space_and_ten_percent_errors_in_contact(box_world):
@@ -33,8 +33,6 @@ def test_observation_keys_agree():
 
 
 def test_observation_readings_invert_their_keys():
-    from models.planar.observation import observation_key, observation_reading
-
     for key in range(8):
         reading = observation_reading(key, 3)
         assert reading.dtype == bool and observation_key(reading) == key
