@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.math import RotationMatrix
 from pydrake.multibody.inverse_kinematics import InverseKinematics
-from pydrake.planning import RobotDiagramBuilder
+from pydrake.planning import RobotDiagram, RobotDiagramBuilder
 from pydrake.solvers import Solve
 
 from models.herb.mount import NUM_ARM_JOINTS, planar_palm_pose
@@ -113,6 +113,18 @@ class IKResult:
     blocking: tuple[ClosePair, ...] = ()
 
 
+def robot_diagram(scene: SceneSpec) -> tuple[RobotDiagram, HerbWorld]:
+    """A kinematic model of ``scene`` without its movable object (the hand is meant to
+    touch it): HERB's arm and hand (fingertip tactile patches), the table, HERB's body and
+    the obstacles, as the ``RobotDiagram`` that Drake's IK and collision checkers take."""
+    builder = RobotDiagramBuilder(time_step=0.0)
+    plant = builder.plant()
+    world = populate_world(plant, builder.scene_graph(), scene,
+                           layout=TactileLayout.load("fingertips"), include_object=False)
+    plant.Finalize()
+    return builder.Build(), world
+
+
 class PlanarHandIK:
     """Inverse kinematics of HERB's arm for planar hand poses in one scene.
 
@@ -132,15 +144,9 @@ class PlanarHandIK:
                  posture_weight: float = 0.0):
         if posture_weight < 0:
             raise ValueError(f"posture_weight must be >= 0, got {posture_weight}")
-        builder = RobotDiagramBuilder(time_step=0.0)
-        plant = builder.plant()
-        self.world: HerbWorld = populate_world(
-            plant, builder.scene_graph(), scene, layout=TactileLayout.load("fingertips"),
-            include_object=False,
-        )
-        plant.Finalize()
+        self._diagram, self.world = robot_diagram(scene)
+        plant = self._diagram.plant()
         self.plant = plant
-        self._diagram = builder.Build()
         self._context = self._diagram.CreateDefaultContext()
         self._plant_context = plant.GetMyMutableContextFromRoot(self._context)
         self.clearance_m = clearance_m

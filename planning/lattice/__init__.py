@@ -1,0 +1,1 @@
+"""The configuration lattice over HERB's arm, Lat-POMDP and Lat-DESPOT (thesis ch. 7)."""
