@@ -162,6 +162,11 @@ class TabularGenerative:
                      np.zeros(1, dtype=np.int64), np.array([0, 1]),
                      np.zeros((1, 2, 2)), 1)  # compile (or load the cached kernel) now
 
+    @property
+    def q_values(self) -> np.ndarray:
+        """(S, A) the MDP's Q (QMDP's action values; the upper bound is their max)."""
+        return self._q
+
     def _best_blind_action(self) -> int:
         """The action whose repetition forever has the largest value at the initial belief."""
         import scipy.sparse as sp

@@ -1,0 +1,60 @@
+"""Un-modelled contact of the movable object (thesis sec. 7.1.2): the object touching an
+obstacle, or leaving the table.
+
+The hand-relative pushing model knows only the hand; an object that touches anything else
+moves in a way it does not model, and Lat-POMDP sends the state to ``s_bad``. The check is
+planar, like the pushing model: the object's footprint at its world pose
+(``X_W_object = X_W_hand(x_r) * X_HO``) against each obstacle's footprint, by the exact
+signed distance of convex polygons (:func:`models.planar.polygon.signed_distances`, batched
+over poses; cylinders are 32-gons there), and its centre against the table top.
+
+Not checked: the object touching an arm link other than the hand. At the ch. 7 palm height
+(6 cm above the table) the forearm and wrist pass above the bottle; a scene with a taller
+object or a lower palm would need the arm's footprint here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from models.herb.scene import SceneSpec
+from models.planar.polygon import ConvexPolygons, pose_points, signed_distances
+from models.se2 import compose
+
+#: Signed distance (m) below which the object counts as touching an obstacle.
+CONTACT_DISTANCE_M = 0.0
+
+
+class UnmodelledContact:
+    """Which object poses touch an obstacle or leave the table, in one scene.
+
+    Args:
+        scene: the scene (its obstacles and table; its object's footprint).
+    """
+
+    def __init__(self, scene: SceneSpec):
+        self.scene = scene
+        footprints = [pose_points(o.pose.as_array()[None], o.spec.footprint())[0]
+                      for o in scene.obstacles]
+        self._obstacles = ConvexPolygons.from_list(footprints) if footprints else None
+        self._object = ConvexPolygons.from_list([scene.object.footprint()])
+
+    def touches(self, hand_poses: np.ndarray, object_poses: np.ndarray) -> np.ndarray:
+        """(K,) bool: does the object at hand-frame pose ``object_poses`` (K, 3), with the
+        palm at world pose ``hand_poses`` (K, 3) (m, m, rad), touch an obstacle or leave
+        the table? NaN object poses (outside the planning region) touch nothing."""
+        world = compose(hand_poses, object_poses)
+        known = ~np.isnan(world[:, 0])
+        out = np.zeros(len(world), dtype=bool)
+        if not known.any():
+            return out
+        poses = world[known]
+        table = self.scene.table
+        off = ((np.abs(poses[:, 0] - table.center_xy_m[0]) > table.size_m[0] / 2)
+               | (np.abs(poses[:, 1] - table.center_xy_m[1]) > table.size_m[1] / 2))
+        hit = off
+        if self._obstacles is not None:
+            distances = signed_distances(self._obstacles, self._object, poses)
+            hit = hit | (distances.min(axis=1) < CONTACT_DISTANCE_M)
+        out[known] = hit
+        return out

@@ -1,0 +1,276 @@
+"""Lat-POMDP (thesis sec. 7.1.2) as a generative POMDP for DESPOT.
+
+State: a row ``[p, *s_rel]``: the lattice point ``p`` of the robot's configuration
+(``q_lat(x_p)``) and the hand-relative state ``s_rel`` of an inner hand-relative model;
+``p = -1`` is the absorbing ``s_bad``. The inner model is either
+
+- the discrete Rel-POMDP (:class:`~planning.pomdp.generative.TabularGenerative`, ``s_rel``
+  the cell), for the value on the discretised model (thesis Fig. 7.4-Top), or
+- the continuous planar model (:class:`~planning.hand.generative.ContinuousHandGenerative`,
+  ``s_rel`` the object's pose (x m, y m, theta rad) in the hand frame), for the success
+  rate on the continuous model (Fig. 7.4-Middle).
+
+Transition: when template ``a`` is feasible from ``p`` (the lattice's local planner,
+evaluated lazily and kept; :class:`~planning.lattice.lattice.ConfigurationLattice`) the
+object moves as in the hand-relative model and the robot to ``p``'s neighbour; then, if the
+object touches an obstacle or leaves the table
+(:class:`~planning.lattice.contact.UnmodelledContact`; for a cell, at its representative
+pose), or when ``a`` is infeasible, the state becomes
+``s_bad``. Reward: the hand-relative reward, and -1 for an infeasible action, for
+un-modelled contact and for every step in ``s_bad``. Because ``s_bad`` is absorbing with
+reward -1 whatever the action, its whole future is known: the step into it returns
+``-1 / (1 - gamma)`` at once and ends the scenario (terminal). The value is the thesis'
+(up to DESPOT's depth limit, where the thesis' sum would stop after ``gamma^D``); the search
+no longer steps scenarios that can gain nothing. Observation: the inner model's; in
+``s_bad`` it is uniform over the observations (the thesis' ``O_lat``), which only the belief
+update sees (:meth:`LatticePOMDP.log_likelihood`).
+
+Bounds (thesis sec. 7.2.2-7.2.3):
+
+- upper: Rel-QMDP's value ``V_MDP`` of the scenario's cell (Theorem 7.2: an upper bound of
+  Rel-POMDP, hence of Lat-POMDP); 0 in ``s_bad`` (its value is already counted);
+- lower: the return of Lift-QMDP rolled out on the discrete Lat-POMDP from each scenario's
+  cell (:meth:`LatticePOMDP.rollout`): at every depth, the action of largest Rel-QMDP value
+  summed over the node's live scenarios' cells, replaced by the next-best feasible one when
+  the lattice says it is infeasible (the lattice queried in that order, lazily); rows that
+  make un-modelled contact go to ``s_bad``.
+
+The robot's configuration is known: every live scenario of a node has the same lattice
+point (the actions so far fix it), so the rollout asks the lattice one edge per node and
+depth, in one batch per depth.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planning.hand.generative import ContinuousHandGenerative
+from planning.hand.model import HandPOMDP
+from planning.lattice.contact import UnmodelledContact
+from planning.lattice.kernels import lift_rollouts
+from planning.lattice.lattice import ConfigurationLattice
+from planning.pomdp.generative import GenerativeStep, TabularGenerative, action_array
+from planning.pomdp.point_based import AlphaVectorPolicy
+
+BAD = -1
+"""The lattice point of ``s_bad``."""
+UNKNOWN_CONTACT = -1
+
+
+def cell_poses(model: HandPOMDP) -> np.ndarray:
+    """(S, 3) a representative hand-frame pose of each model state (cell centre, contact
+    piece midpoint); NaN for the sentinel (outside the planning region)."""
+    raw = model.discretization.representative_poses()
+    poses = np.full((len(model.pomdp.states), 3), np.nan)
+    kept = model.kept[:len(raw)]
+    poses[kept[kept >= 0]] = raw[kept >= 0]
+    return poses
+
+
+def lift_choice(values: np.ndarray, feasible) -> np.ndarray:
+    """The Lift policies' choice (thesis sec. 7.3.2): per row of ``values`` (J, A) (an
+    action value per row, e.g. Rel-QMDP's Q summed over a belief), the best action that
+    ``feasible(rows (n,), actions (n,)) -> (n,) bool`` accepts, asking it in order of value
+    (so only the actions up to the chosen one are queried); where none is, the best.
+
+    Returns:
+        (J,) int64 actions.
+    """
+    order = np.argsort(-values, axis=1, kind="stable")
+    chosen = order[:, 0].copy()
+    pending = np.arange(len(values))
+    for rank in range(values.shape[1]):
+        if not len(pending):
+            break
+        ok = feasible(pending, order[pending, rank])
+        chosen[pending[ok]] = order[pending[ok], rank]
+        pending = pending[~ok]
+    return chosen
+
+
+class LatticePOMDP:
+    """See the module docstring.
+
+    Args:
+        model: the discrete hand-relative POMDP (cells, Rel-QMDP, the continuous world).
+        lattice: the scene's configuration lattice.
+        contact: the scene's un-modelled contact check.
+        inner: ``"discrete"`` or ``"continuous"``; ``continuous_inner`` replaces the
+            continuous model built from ``model`` and ``initial``.
+        initial: the continuous initial belief (for ``sample_initial`` and the continuous
+            inner model).
+        upper_values: (S,) an upper bound of Rel-POMDP's value at each cell (default:
+            Rel-QMDP's ``V_MDP``; the point-based solver's corner values are tighter).
+        rollout_policy: the hand-relative policy lifted in the rollouts (default:
+            Rel-QMDP, as the thesis; the point-based solver's alpha-vectors make them
+            Lift-SARSOP's).
+    """
+
+    def __init__(self, model: HandPOMDP, lattice: ConfigurationLattice,
+                 contact: UnmodelledContact, *, inner: str = "discrete", initial=None,
+                 upper_values: np.ndarray | None = None,
+                 rollout_policy: AlphaVectorPolicy | None = None):
+        if inner not in ("discrete", "continuous"):
+            raise ValueError(f"inner must be 'discrete' or 'continuous', got {inner!r}")
+        self.model = model
+        self.lattice = lattice
+        self.contact = contact
+        self.tabular = TabularGenerative(model.pomdp, default_policy="qmdp")
+        self.continuous = inner == "continuous"
+        self.inner = (ContinuousHandGenerative(model, initial) if self.continuous
+                      else self.tabular)
+        self.initial = initial
+        self.discount = model.pomdp.discount
+        self.actions = model.pomdp.actions
+        self.uniforms_per_step = self.inner.uniforms_per_step
+        self.bad_return = -1.0 / (1.0 - self.discount)
+        q = self.tabular.q_values
+        self._upper_values = q.max(axis=1) if upper_values is None else np.asarray(
+            upper_values, dtype=float)
+        if rollout_policy is None:
+            self._alphas, self._alpha_actions = np.ascontiguousarray(q.T), np.arange(q.shape[1])
+        else:
+            self._alphas = np.ascontiguousarray(rollout_policy.alphas, dtype=float)
+            self._alpha_actions = np.asarray(rollout_policy.alpha_actions, dtype=np.int64)
+        self._cell_poses = cell_poses(model)
+        #: (P, S) int8 un-modelled contact of each cell at each point, -1 until asked.
+        self._contact = np.full((lattice.spec.size, len(model.pomdp.states)),
+                                UNKNOWN_CONTACT, dtype=np.int8)
+        self._tabular_params = self.tabular.kernels()[1]
+        self._terminal = self._tabular_params[5]
+
+    # -- the generative model
+    def step(self, states: np.ndarray, actions: int | np.ndarray,
+             u: np.ndarray) -> GenerativeStep:
+        states = np.asarray(states, dtype=float)
+        a = action_array(actions, len(states))
+        points = states[:, 0].astype(np.int64)
+        live = np.flatnonzero(points != BAD)
+        next_states = states.copy()
+        rewards = np.zeros(len(states))
+        terminal = points == BAD
+        observations = np.zeros(len(states), dtype=np.int64)
+        if len(live):
+            feasible = self.lattice.feasible(points[live], a[live])
+            inner = self.inner.step(self._inner(states[live]), a[live], u[live])
+            targets = self.lattice.neighbours[points[live], a[live]]
+            touched = np.zeros(len(live), dtype=bool)
+            touched[feasible] = self.touches(targets[feasible],
+                                             inner.next_states[feasible])
+            bad = ~feasible | touched
+            next_states[live, 0] = np.where(bad, BAD, targets)
+            next_states[live, 1:] = np.where(bad[:, None], states[live, 1:],
+                                             inner.next_states)
+            rewards[live] = np.where(bad, self.bad_return, inner.rewards)
+            terminal[live] = bad | inner.terminal
+            observations[live] = inner.observations
+        return GenerativeStep(next_states, rewards, observations, terminal)
+
+    def log_likelihood(self, observation: int, states: np.ndarray,
+                       action: int) -> np.ndarray:
+        states = np.asarray(states, dtype=float)
+        out = np.full(len(states), -np.log(len(self.model.pomdp.observations)))
+        live = states[:, 0] != BAD
+        if live.any():
+            out[live] = self.inner.log_likelihood(observation, self._inner(states[live]),
+                                                  action)
+        return out
+
+    def sample_initial(self, n: int, *, rng: np.random.Generator) -> np.ndarray:
+        """(n, 1 + d) the start point with the inner model's initial states (the
+        continuous belief's samples, or their cells)."""
+        if self.initial is None:
+            raise ValueError("LatticePOMDP needs an initial belief to sample from")
+        poses = self.initial.sample(self.model.world, n, rng=rng)
+        return self.with_point(self.lattice.start_point, poses)
+
+    def with_point(self, point: int, poses: np.ndarray) -> np.ndarray:
+        """Rows ``[point, s_rel]`` for hand-frame object poses (n, 3) (cells of them for the
+        discrete inner model)."""
+        inner = poses if self.continuous else self.model.index(poses)[:, None]
+        return np.column_stack([np.full(len(poses), float(point)), inner])
+
+    def is_terminal(self, states: np.ndarray) -> np.ndarray:
+        return np.asarray(states)[:, 0] == BAD
+
+    def upper_bound(self, states: np.ndarray) -> np.ndarray:
+        states = np.asarray(states, dtype=float)
+        return np.where(states[:, 0] == BAD, 0.0, self._upper_values[self.cells(states)])
+
+    def policy_values(self, cells: np.ndarray) -> np.ndarray:
+        """(A,) the lifted policy's action values at the histogram of ``cells`` (n,) (its
+        best vector's summed value per action; -inf for an action without one)."""
+        dots = self._alphas[:, cells].sum(axis=1)
+        values = np.full(len(self.actions), -np.inf)
+        np.maximum.at(values, self._alpha_actions, dots)
+        return values
+
+    def default_actions(self, states: np.ndarray) -> np.ndarray:
+        """The lifted policy on the node's live scenarios (they share the lattice point),
+        as the rollouts choose."""
+        states = np.asarray(states, dtype=float)
+        live = states[:, 0] != BAD
+        if not live.any():
+            return np.zeros(len(states), dtype=np.int64)
+        point = int(states[np.flatnonzero(live)[0], 0])
+        values = self.policy_values(self.cells(states[live]))[None]
+        action = lift_choice(values, lambda rows, acts: self.lattice.feasible(
+            np.full(len(rows), point), acts))
+        return np.full(len(states), int(action[0]), dtype=np.int64)
+
+    def rollout(self, states, scenarios, depths, offsets, uniforms, max_depth) -> np.ndarray:
+        """(M,) Lift-QMDP's discounted returns on the discrete Lat-POMDP from each row's
+        point and cell, rows ``offsets[j]:offsets[j + 1]`` being node j's scenarios: the
+        compiled kernel (:mod:`planning.lattice.kernels`), with the lattice's answers it
+        asks for evaluated between its calls, each call's requests in one batch."""
+        states = np.asarray(states, dtype=float)
+        points = states[:, 0].astype(np.int64)
+        cells = self.cells(states)
+        depth = np.array(depths, dtype=np.int64, copy=True)
+        scale, value = np.ones(len(states)), np.zeros(len(states))
+        alive = (points != BAD) & (depth < max_depth) & ~self._terminal[cells]
+        offsets = np.asarray(offsets, dtype=np.int64)
+        pending = np.empty((len(offsets) - 1, 2), dtype=np.int64)
+        indptr, indices, cumulative, _, R, terminal, _, _, _ = self._tabular_params
+        while True:
+            lift_rollouts(points, cells, depth, scale, value, alive, offsets,
+                          np.asarray(scenarios, dtype=np.int64), uniforms, max_depth,
+                          self.discount, self.bad_return, indptr, indices, cumulative, R,
+                          terminal, self._alphas, self._alpha_actions, self.lattice.status,
+                          self.lattice.neighbours, self._contact, pending)
+            asked = pending[pending[:, 0] >= 0]
+            if not len(asked):
+                return value
+            edges = asked[asked[:, 1] >= 0]
+            if len(edges):
+                self.lattice.feasible(edges[:, 0], edges[:, 1])
+            self._contact_rows(asked[asked[:, 1] < 0, 0])
+
+    # -- helpers
+    def _inner(self, states: np.ndarray) -> np.ndarray:
+        return states[:, 1:] if self.continuous else states[:, 1:].astype(np.int64)
+
+    def cells(self, states: np.ndarray) -> np.ndarray:
+        """(K,) the discrete cell of each row's hand-relative state."""
+        inner = states[:, 1:]
+        return self.model.index(inner) if self.continuous else inner[:, 0].astype(np.int64)
+
+    def touches(self, points: np.ndarray, inner_states: np.ndarray) -> np.ndarray:
+        """(K,) bool: un-modelled contact of inner states at lattice points."""
+        if self.continuous:
+            return self.contact.touches(self.lattice.poses[points], inner_states)
+        return self.cells_touch(points, np.asarray(inner_states)[:, 0].astype(np.int64))
+
+    def cells_touch(self, points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+        """(K,) bool: does the representative pose of each cell touch something at its
+        lattice point?"""
+        points = np.asarray(points, dtype=np.int64)
+        self._contact_rows(points)
+        return self._contact[points, np.asarray(cells, dtype=np.int64)] == 1
+
+    def _contact_rows(self, points: np.ndarray) -> None:
+        """Fill the contact table's rows (every cell) of the points not filled yet."""
+        todo = np.unique(points[self._contact[points, 0] == UNKNOWN_CONTACT])
+        for point in todo:
+            poses = self.lattice.poses[np.full(len(self._cell_poses), point)]
+            self._contact[point] = self.contact.touches(poses, self._cell_poses)
