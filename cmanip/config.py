@@ -24,6 +24,7 @@ from diagrams.herb.settings import EpisodeSettings
 from experiments.closedloop_study import ClosedLoopSettings
 from experiments.handplan_study import PARTS as HANDPLAN_PARTS
 from experiments.handplan_study import HandplanSettings
+from experiments.latdespot_scenes import SceneSettings
 from experiments.latdespot_study import PARTS as LATDESPOT_PARTS
 from experiments.latdespot_study import RelSettings
 from experiments.mpf_study import PARTS as MPF_PARTS
@@ -150,12 +151,15 @@ class LatDespotStudyConfig:
     """The ch. 7 study (``cmanip experiment latdespot``).
 
     Attributes:
-        part: which experiment (``rel``: the hand-relative problem, Fig. 7.3).
-        rel: its settings.
+        part: which experiment: ``rel`` (the hand-relative problem, Fig. 7.3), ``scenes``
+            (the Lat-POMDP scenes, Fig. 7.4), ``bound`` (sec. 7.3.5) or ``all``.
+        rel: the problem, belief, budgets, trials, horizon and seed of every part.
+        scenes: the scenes' settings (parts ``scenes``, ``bound``).
     """
 
     part: str = "rel"
     rel: RelSettings = RelSettings()
+    scenes: SceneSettings = SceneSettings()
 
     def __post_init__(self):
         _check_part(self.part, LATDESPOT_PARTS)

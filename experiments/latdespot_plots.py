@@ -50,3 +50,81 @@ def plot_rel(summary: dict, out: Path) -> None:
     ax.set_ylim(0, 1)
     ax.legend(loc="upper left", fontsize=8)  # the discrete planners oscillate below
     save_figure(fig, out / "rel_success.png")
+
+
+SCENE_LABELS = {"rel-qmdp": "RM", "rel-sarsop": "RS", "rel-despot": "RD", "lift-qmdp": "LM",
+                "lift-sarsop": "LS", "lat-despot": "LD", "lat-despot-pb": "LD-pb"}
+SCENE_COLORS = {"rel-qmdp": "0.55", "rel-sarsop": "tab:blue", "rel-despot": "tab:orange",
+                "lift-qmdp": "0.3", "lift-sarsop": "tab:cyan", "lat-despot": "tab:red",
+                "lat-despot-pb": "tab:purple"}
+
+
+def plot_scenes(summary: dict, out: Path) -> None:
+    """``lat_scenes.png``: the thesis' Fig. 7.4, one column per scene: (top) the value on
+    the discrete Lat-POMDP (axis inverted as the thesis'), (middle) the success rate on the
+    continuous one with 95 % Wilson intervals, (bottom) the fraction of episodes that took
+    an infeasible action; and ``lattice_<scene>.png`` for each saved lattice."""
+    scenes = summary["scenes"]
+    fig, axes = plt.subplots(3, len(scenes), figsize=(3.2 * len(scenes), 7.5),
+                             sharey="row", squeeze=False)
+    for col, (scene, entries) in enumerate(scenes.items()):
+        names = list(entries)
+        x = np.arange(len(names))
+        colors = [SCENE_COLORS.get(n, "0.4") for n in names]
+        value = [entries[n]["discounted_value"] for n in names]
+        axes[0, col].bar(x, value, yerr=[entries[n]["discounted_value_ci95"] for n in names],
+                         color=colors, capsize=3)
+        rate = np.array([entries[n]["success_rate"] for n in names])
+        lo = rate - np.array([entries[n]["success_rate_ci95"][0] for n in names])
+        hi = np.array([entries[n]["success_rate_ci95"][1] for n in names]) - rate
+        axes[1, col].bar(x, rate, yerr=[lo, hi], color=colors, capsize=3)
+        axes[2, col].bar(x, [entries[n]["infeasible_rate"] for n in names], color=colors)
+        axes[0, col].set_title(scene, fontsize=10)
+        for row in range(3):
+            axes[row, col].set_xticks(x, [SCENE_LABELS.get(n, n) for n in names], fontsize=7)
+    axes[0, 0].invert_yaxis()
+    axes[0, 0].set_ylabel("value, discrete model\n(inverted: shorter is better)")
+    axes[1, 0].set_ylabel("Pr(goal), continuous")
+    axes[1, 0].set_ylim(0, 1)
+    axes[2, 0].set_ylabel("Pr(infeasible action)")
+    axes[2, 0].set_ylim(0, 1)
+    save_figure(fig, out / "lat_scenes.png")
+    for scene in scenes:
+        path = out / f"lattice_{Path(scene).stem}.npz"
+        if path.exists():
+            plot_lattice(np.load(path), f"{Path(scene).stem}: the lattice Lat-DESPOT asked for "
+                         "in one episode", out / f"lattice_{Path(scene).stem}.png")
+
+
+def plot_lattice(data, title: str, path: Path) -> None:
+    """The thesis' Fig. 7.1 for one episode: every lattice point with a configuration
+    (grey), the edges the planner asked for (green feasible, red infeasible), the
+    obstacles' footprints and the hand's start (world frame, cm)."""
+    poses, neighbours = data["poses"] * 100, data["neighbours"]
+    fig, ax = plt.subplots(figsize=(6, 6))
+    reachable = data["reachable"]
+    ax.scatter(poses[reachable, 1], poses[reachable, 0], s=1, color="0.75",
+               label="lattice point with IK")
+    points, actions = np.nonzero(data["asked"])
+    targets = neighbours[points, actions]
+    for ok, color, label in ((1, "tab:green", "asked, feasible"),
+                             (0, "tab:red", "asked, infeasible")):
+        sel = (data["status"][points, actions] == ok) & (targets >= 0)
+        segments = np.stack([poses[points[sel]][:, [1, 0]], poses[targets[sel]][:, [1, 0]]],
+                            axis=1)
+        for k, segment in enumerate(segments):
+            ax.plot(segment[:, 0], segment[:, 1], color=color, lw=1.2,
+                    label=label if k == 0 else None)
+    start = 0
+    for size in data["obstacle_sizes"]:
+        outline = data["obstacles"][start:start + size] * 100
+        ax.fill(outline[:, 1], outline[:, 0], color="tab:brown", alpha=0.6)
+        start += size
+    ax.plot(data["start"][1] * 100, data["start"][0] * 100, "k^", label="hand start")
+    ax.set_xlabel("y (cm, world)")
+    ax.set_ylabel("x (cm, world; forward)")
+    ax.invert_xaxis()  # HERB's view: its left on the left
+    ax.set_aspect("equal")
+    ax.set_title(title, fontsize=9)
+    ax.legend(loc="lower left", fontsize=7)
+    save_figure(fig, path)

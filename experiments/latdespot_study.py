@@ -27,15 +27,17 @@ time per decision. Episode j of a policy is seeded from (seed, stream, j); DESPO
 budget is a trial count (``despot_trials``) so that results do not depend on the
 machine's speed, with a wall-clock cap (``despot_seconds``).
 
-Not done yet: the Lat-POMDP parts (issue 16).
+Parts ``scenes`` and ``bound`` (the Lat-POMDP experiments of sec. 7.3.4-7.3.5):
+:mod:`experiments.latdespot_scenes`; ``all`` runs the three.
 """
 
 from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -59,7 +61,10 @@ from planning.pomdp.point_based import PointBasedSolver
 from planning.pomdp.progress import SolverProgressBar
 from planning.pomdp.qmdp import solve_mdp
 
-PARTS = ("rel",)
+if TYPE_CHECKING:
+    from experiments.latdespot_scenes import SceneSettings
+
+PARTS = ("rel", "scenes", "bound", "all")
 CONTINUOUS_ROLLOUTS = ("discrete", "continuous")
 
 
@@ -160,8 +165,9 @@ def build_rel_problem(settings: RelSettings) -> tuple[HandPOMDP, GaussianBelief,
 
 
 def solve_rel(settings: RelSettings, model: HandPOMDP, initial: np.ndarray
-              ) -> tuple[dict, dict]:
-    """The three policies, and what solving them cost."""
+              ) -> tuple[dict, dict, np.ndarray]:
+    """The three policies, what solving them cost, and the point-based solver's corner
+    upper bound (S,)."""
     start = time.perf_counter()
     Q = solve_mdp(model.pomdp)
     qmdp_s = time.perf_counter() - start
@@ -187,48 +193,71 @@ def solve_rel(settings: RelSettings, model: HandPOMDP, initial: np.ndarray
     costs = {"build_s": model.build_seconds, "qmdp_solve_s": qmdp_s,
              "sarsop_solve_s": solve_s, "sarsop_bounds": [lower, upper],
              "sarsop_alpha_vectors": len(sarsop.alphas)}
-    return policies, costs
+    return policies, costs, solver.corner.copy()
 
 
-def run_rel(settings: RelSettings, out: Path, *, workers: int = 1) -> dict:
-    """Part ``rel``: writes ``summary.json`` (``rel: {policy: {...}}``) and the PNGs;
-    ``workers`` processes run the continuous-model DESPOT's episodes (the results do not
-    depend on it)."""
-    from experiments.latdespot_plots import plot_rel
-
-    out.mkdir(parents=True, exist_ok=True)
-    model, belief, initial = build_rel_problem(settings)
-    policies, costs = solve_rel(settings, model, initial)
+def evaluate_rel(settings: RelSettings, model: HandPOMDP, belief: GaussianBelief,
+                 initial: np.ndarray, policies: dict, *, workers: int = 1,
+                 continuous: bool = True) -> dict:
+    """Part ``rel``'s entries ``{policy: {...}}``: each policy's value on the discrete
+    model and (``continuous``) its success on the continuous one, and Rel-DESPOT on the
+    continuous model."""
     problem = SolvedProblem(model, initial[None, :], policies, {}, [])
     evaluation = HandplanSettings(trials=settings.trials, seed=settings.seed,
                                   horizon=settings.horizon, spec=model.spec,
                                   object_name=settings.object_name)
     discrete = evaluate_discrete(problem, evaluation, episodes=settings.trials)
-    continuous = evaluate_continuous(problem, [belief], evaluation, precontact=False,
-                                     label="rel")
     rel = {}
     for name, policy in policies.items():
-        entry = {**discrete[name], "value_model": "discrete",
-                 "success_rate": continuous[name]["success_rate"],
-                 "success_rate_ci95": continuous[name]["success_rate_ci95"],
-                 "success_over_time": continuous[name]["success_over_time"],
-                 "continuous_discounted_value": continuous[name]["discounted_value"],
-                 "continuous_discounted_value_ci95":
-                     continuous[name]["discounted_value_ci95"]}
+        rel[name] = {**discrete[name], "value_model": "discrete"}
         if isinstance(policy, DespotOnDiscreteBelief):
-            entry["planning_ms_median"] = float(np.median(policy.planning_ms))
-            entry["decisions"] = len(policy.planning_ms)
+            rel[name]["planning_ms_median"] = float(np.median(policy.planning_ms))
+            rel[name]["decisions"] = len(policy.planning_ms)
         else:
-            entry["planning_ms_median"] = median_ms(lambda p=policy: p.act(initial), 50)
-        rel[name] = entry
+            rel[name]["planning_ms_median"] = median_ms(lambda p=policy: p.act(initial), 50)
+    if not continuous:
+        return rel
+    on_continuous = evaluate_continuous(problem, [belief], evaluation, precontact=False,
+                                        label="rel")
+    for name in policies:
+        c = on_continuous[name]
+        rel[name].update({"success_rate": c["success_rate"],
+                          "success_rate_ci95": c["success_rate_ci95"],
+                          "success_over_time": c["success_over_time"],
+                          "continuous_discounted_value": c["discounted_value"],
+                          "continuous_discounted_value_ci95": c["discounted_value_ci95"]})
     rel["rel-despot-continuous"] = summarise_episodes(
         run_continuous_episodes(settings, build_rel_problem, workers=workers))
-    summary = {"part": "rel", "settings": asdict(settings),
+    return rel
+
+
+def run_study(part: str, settings: RelSettings, scenes: SceneSettings, out: Path, *,
+              workers: int = 1) -> dict:
+    """Part ``rel``, ``scenes``, ``bound`` or ``all`` (see the module docstrings of this
+    module and :mod:`experiments.latdespot_scenes`): writes ``summary.json`` (``rel``,
+    ``scenes``, ``bound`` as run) and the PNGs; ``workers`` processes run the episodes that
+    plan online (the results do not depend on it)."""
+    from experiments.latdespot_plots import plot_rel, plot_scenes
+    from experiments.latdespot_scenes import Solved, bound_check, run_scenes, settings_dict
+
+    out.mkdir(parents=True, exist_ok=True)
+    model, belief, initial = build_rel_problem(settings)
+    policies, costs, corner = solve_rel(settings, model, initial)
+    summary = {"part": part, "settings": settings_dict(settings, scenes),
                "model": {"states": len(model.pomdp.states),
                          "actions": list(model.pomdp.actions),
-                         "observations": len(model.pomdp.observations), **costs},
-               "rel": rel}
+                         "observations": len(model.pomdp.observations), **costs}}
+    if part in ("rel", "bound", "all"):
+        summary["rel"] = evaluate_rel(settings, model, belief, initial, policies,
+                                      workers=workers, continuous=part != "bound")
+    if part in ("scenes", "bound", "all"):
+        solved = Solved(policies["rel-sarsop"], corner)
+        summary["scenes"] = run_scenes(settings, scenes, solved, out, workers=workers)
+    if part in ("bound", "all"):
+        summary["bound"] = bound_check(summary["rel"], summary["scenes"])
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    plot_rel(summary, out)
+    if part in ("rel", "all"):
+        plot_rel(summary, out)
+    if "scenes" in summary:
+        plot_scenes(summary, out)
     return summary
-

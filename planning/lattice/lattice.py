@@ -19,7 +19,9 @@ trial and decision):
 Drake's signed-distance query gives each evaluated edge its clearance: the smallest
 signed distance between a robot geometry and anything else along it (``CalcRobotClearance``
 within 10 cm), so a planner or a drawing can say how close the arm passes to an obstacle.
-The evaluated fraction of the lattice (the thesis' Fig. 7.1) is :meth:`ConfigurationLattice.stats`.
+The evaluated fraction of the lattice (the thesis' Fig. 7.1) is
+:meth:`ConfigurationLattice.stats`; the edges one episode asked for,
+:attr:`ConfigurationLattice.asked`.
 
 Why Drake's collision checker rather than the IK's distance query: it checks a batch of
 configurations in one call, filters the robot's adjacent links once, and is what the
@@ -131,6 +133,9 @@ class ConfigurationLattice:
         self.status = np.full((size, actions), UNKNOWN, dtype=np.int8)
         self._point_free = np.full(size, UNKNOWN, dtype=np.int8)
         self._edges: dict[tuple[int, int], Edge] = {}
+        #: (P, A) bool: the edges asked for since :meth:`reset_asked` (what one episode
+        #: or decision needed, whatever was evaluated before it).
+        self.asked = np.zeros((size, actions), dtype=bool)
 
     @property
     def start_point(self) -> int:
@@ -144,6 +149,7 @@ class ConfigurationLattice:
         Evaluates (in one batch) the pairs not evaluated before, and only those."""
         points = np.asarray(points, dtype=np.int64)
         actions = np.asarray(actions, dtype=np.int64)
+        self.asked[points, actions] = True
         status = self.status[points, actions]
         unknown = status == UNKNOWN
         if unknown.any():
@@ -157,8 +163,13 @@ class ConfigurationLattice:
         count = len(self.action_vectors)
         return self.feasible(np.full(count, point), np.arange(count))
 
+    def reset_asked(self) -> None:
+        """Forget which edges were asked for (not their evaluation)."""
+        self.asked[:] = False
+
     def edge(self, point: int, action: int) -> Edge:
         """The edge of template ``action`` from ``point`` (evaluated if it was not)."""
+        self.asked[point, action] = True
         if self.status[point, action] == UNKNOWN:
             self._evaluate([(int(point), int(action))])
         return self._edges[(int(point), int(action))]

@@ -182,13 +182,18 @@ class LatticePOMDP:
         if self.initial is None:
             raise ValueError("LatticePOMDP needs an initial belief to sample from")
         poses = self.initial.sample(self.model.world, n, rng=rng)
-        return self.with_point(self.lattice.start_point, poses)
+        return self.from_poses(self.lattice.start_point, poses)
 
-    def with_point(self, point: int, poses: np.ndarray) -> np.ndarray:
-        """Rows ``[point, s_rel]`` for hand-frame object poses (n, 3) (cells of them for the
-        discrete inner model)."""
-        inner = poses if self.continuous else self.model.index(poses)[:, None]
-        return np.column_stack([np.full(len(poses), float(point)), inner])
+    def with_point(self, point: int, inner_states: np.ndarray) -> np.ndarray:
+        """Rows ``[point, s_rel]`` of the inner model's states (n, d)."""
+        inner = np.asarray(inner_states, dtype=float).reshape(len(inner_states), -1)
+        return np.column_stack([np.full(len(inner), float(point)), inner])
+
+    def from_poses(self, point: int, poses: np.ndarray) -> np.ndarray:
+        """Rows ``[point, s_rel]`` of hand-frame object poses (n, 3): the poses, or their
+        cells for the discrete inner model."""
+        poses = np.asarray(poses, dtype=float)
+        return self.with_point(point, poses if self.continuous else self.model.index(poses))
 
     def is_terminal(self, states: np.ndarray) -> np.ndarray:
         return np.asarray(states)[:, 0] == BAD

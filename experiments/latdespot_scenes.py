@@ -1,0 +1,415 @@
+"""``cmanip experiment latdespot --part scenes|bound``: the thesis' Lat-POMDP experiments
+(sec. 7.3.4, Fig. 7.4) and the upper-bound validation (sec. 7.3.5).
+
+Each scene (``empty``, ``right_obstacles``, ``left_obstacles``, ``cul_de_sac``) is HERB's
+right arm with its hand at the scene's start, the ch. 7 problem and belief of part ``rel``
+(:mod:`experiments.latdespot_study`: a bottle, two perfect fingertip sensors, four 1 cm
+moves), on the scene's configuration lattice (1 cm, the problem's step;
+:mod:`planning.lattice`). Policies (thesis sec. 7.3.2):
+
+- ``rel-qmdp``, ``rel-sarsop``, ``rel-despot``: plan on the discrete Rel-POMDP, blind to
+  the arm; the action they choose is executed whatever the lattice says;
+- ``lift-qmdp``, ``lift-sarsop``: Rel-QMDP's and Rel-SARSOP's choice, replaced by the
+  next-best feasible action;
+- ``lat-despot``: DESPOT on the discrete Lat-POMDP, Rel-QMDP upper bound, Lift-QMDP
+  rollouts (thesis sec. 7.2);
+- ``lat-despot-pb`` (beyond the thesis, its sec. 7.4): the same with the point-based
+  solver's bounds: its corner values above (the sawtooth upper bound at each state) and
+  Lift-SARSOP rollouts below.
+
+Every policy plans on the discrete model and tracks the discrete belief (thesis sec.
+6.4.1); DESPOT's scenarios are drawn from it. Each is evaluated on two models, from the
+same initial belief, ``trials`` episodes of ``horizon`` steps each:
+
+- the discrete Lat-POMDP: its discounted value (Fig. 7.4-Top); an episode that enters
+  ``s_bad`` gets -1 for every remaining step;
+- the continuous Lat-POMDP (the planar pushing model on the lattice): the success rate,
+  Pr(object in the goal) at the last step (Fig. 7.4-Middle), and the fraction of episodes
+  that took an infeasible action (Fig. 7.4-Bottom; such an episode ends there and fails) or
+  made un-modelled contact (ends likewise).
+
+Episode (scene, policy, model, j) is seeded from (seed, 23, scene, policy, model, j) and
+depends on nothing else (the lattice's answers are deterministic, whichever episode asked
+first), so episodes run in any number of spawned processes, each building its scenes once.
+DESPOT's budget is a trial count per decision with a wall-clock cap (``lat_despot_trials``,
+``lat_despot_seconds``); with the trial count set to none the cap alone is the budget
+(the 0.1 s and 1 s figures).
+
+Part ``bound`` (sec. 7.3.5): the discrete-model values of Rel-SARSOP and Rel-DESPOT on
+Rel-POMDP (part ``rel``'s) against the best value of any policy on each scene's
+Lat-POMDP (Theorem 7.2: the first bounds the second).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from experiments.latdespot_study import (
+    RelSettings,
+    build_rel_problem,
+)
+from experiments.statistics import half_width, wilson_interval
+from models.herb.scene import SceneSpec
+from models.planar.polygon import pose_points
+from planning.hand.model import HandPOMDP
+from planning.hand.policy import qmdp_vectors
+from planning.lattice.contact import UnmodelledContact
+from planning.lattice.grid import LatticeSpec
+from planning.lattice.ik_table import load_ik_table
+from planning.lattice.lattice import ConfigurationLattice
+from planning.lattice.planners import LatDespotPlanner, LiftPolicy
+from planning.lattice.pomdp import BAD, LatticePOMDP
+from planning.pomdp.despot import DespotSettings
+from planning.pomdp.generative import TabularGenerative
+from planning.pomdp.online import DespotPlanner
+from planning.pomdp.point_based import AlphaVectorPolicy
+from planning.pomdp.qmdp import solve_mdp
+from planning.pomdp.tabular import belief_update
+
+SCENES = ("empty", "right_obstacles", "left_obstacles", "cul_de_sac")
+POLICIES = ("rel-qmdp", "rel-sarsop", "rel-despot", "lift-qmdp", "lift-sarsop",
+            "lat-despot", "lat-despot-pb")
+MODELS = ("discrete", "continuous")
+EPISODE_STREAM = 23
+
+
+@dataclass(frozen=True)
+class SceneSettings:
+    """Attributes:
+        scenes: which scenes (built-in names or paths).
+        lat_despot_trials: DESPOT trials per Lat-DESPOT decision (None: the wall-clock cap
+            alone).
+        lat_despot_seconds: wall-clock cap per Lat-DESPOT decision (s).
+        lattice_x_range_m, lattice_y_range_m: the lattice's extent about the hand's start
+            (back, forward) and (right, left) (m); its resolution is the problem's step.
+        cache_dir: where the lattice's IK table is kept (None: solved, not kept).
+    """
+
+    scenes: tuple[str, ...] = SCENES
+    lat_despot_trials: int | None = 30
+    lat_despot_seconds: float = 5.0
+    lattice_x_range_m: tuple[float, float] = (-0.10, 0.40)
+    lattice_y_range_m: tuple[float, float] = (-0.40, 0.40)
+    cache_dir: str | None = "out/cache"
+
+    def __post_init__(self):
+        if not self.scenes:
+            raise ValueError("scenes must name at least one scene")
+        if self.lat_despot_trials is not None and self.lat_despot_trials < 1:
+            raise ValueError(f"lat_despot_trials must be >= 1 or None, got "
+                             f"{self.lat_despot_trials}")
+        if self.lat_despot_seconds <= 0:
+            raise ValueError(f"lat_despot_seconds must be > 0 s, got "
+                             f"{self.lat_despot_seconds}")
+
+
+@dataclass(frozen=True)
+class Solved:
+    """What the parent solves once and every worker receives: the point-based policy and
+    its corner upper bound (S,)."""
+
+    sarsop: AlphaVectorPolicy
+    corner: np.ndarray
+
+
+@dataclass(frozen=True)
+class LatEpisode:
+    """One episode on a Lat-POMDP.
+
+    Attributes:
+        in_goal: (horizon + 1,) bool, the object in the goal before each step and after the
+            last (False from the step that ends the episode in ``s_bad``).
+        discounted_return: sum_t gamma^t R_t over the horizon.
+        infeasible: the episode took an infeasible action (and ended).
+        unmodelled: the episode made un-modelled contact (and ended).
+        planning_ms: wall time of each decision (ms).
+        edges_asked: lattice edges the policy asked for in the episode.
+        edges_asked_per_decision: median over its decisions.
+        asked: (P, A) bool, the asked edges, and status: (P, A) int8 the lattice's
+            answers at the end (kept for the lattice figure of Lat-DESPOT's episodes).
+    """
+
+    in_goal: np.ndarray
+    discounted_return: float
+    infeasible: bool
+    unmodelled: bool
+    planning_ms: np.ndarray
+    edges_asked: int
+    edges_asked_per_decision: float
+    asked: np.ndarray | None = None
+    status: np.ndarray | None = None
+
+
+def lattice_spec(scene: SceneSpec, step_m: float, settings: SceneSettings) -> LatticeSpec:
+    """The scene's lattice: at the hand's start, the problem's step (m) apart."""
+    return LatticeSpec(start=tuple(float(v) for v in scene.hand_start.as_array()),
+                       resolution_m=step_m, x_range_m=settings.lattice_x_range_m,
+                       y_range_m=settings.lattice_y_range_m)
+
+
+class SceneEpisodes:
+    """One scene's lattice, models and policies (built in each worker)."""
+
+    def __init__(self, rel: RelSettings, scenes: SceneSettings, solved: Solved,
+                 model: HandPOMDP, belief, initial: np.ndarray, scene_name: str):
+        self.rel, self.model, self.belief, self.initial = rel, model, belief, initial
+        self.scene = SceneSpec.load(scene_name, object_override=rel.object_name)
+        spec = lattice_spec(self.scene, model.spec.step_m, scenes)
+        cache = None if scenes.cache_dir is None else Path(scenes.cache_dir)
+        table = load_ik_table(self.scene, spec, cache_dir=cache, progress=False)
+        self.lattice = ConfigurationLattice(self.scene, table, model.spec.action_vectors())
+        contact = UnmodelledContact(self.scene)
+        self.models = {kind: LatticePOMDP(model, self.lattice, contact, inner=kind,
+                                          initial=belief) for kind in MODELS}
+        lat_settings = DespotSettings(scenarios=rel.despot_scenarios, depth=rel.despot_depth,
+                                      max_trials=scenes.lat_despot_trials,
+                                      seconds=scenes.lat_despot_seconds)
+        pb = LatticePOMDP(model, self.lattice, contact, inner="discrete", initial=belief,
+                          upper_values=solved.corner, rollout_policy=solved.sarsop)
+        q = qmdp_vectors(solve_mdp(model.pomdp), model.pomdp.actions)
+        rel_despot = DespotPlanner(TabularGenerative(model.pomdp, default_policy="qmdp"),
+                                   DespotSettings(scenarios=rel.despot_scenarios,
+                                                  depth=rel.despot_depth,
+                                                  max_trials=rel.despot_trials,
+                                                  seconds=rel.despot_seconds))
+        self.vectors = {"rel-qmdp": q, "rel-sarsop": solved.sarsop}
+        self.lift = {"lift-qmdp": LiftPolicy(q, self.lattice),
+                     "lift-sarsop": LiftPolicy(solved.sarsop, self.lattice)}
+        self.lat = {"lat-despot": LatDespotPlanner(self.models["discrete"], lat_settings),
+                    "lat-despot-pb": LatDespotPlanner(pb, lat_settings)}
+        self.rel_despot = rel_despot
+
+    def decide(self, policy: str, point: int, belief: np.ndarray,
+               rng: np.random.Generator) -> tuple[int, float]:
+        """(action, planning ms) of ``policy`` at lattice point ``point``, discrete belief
+        (S,)."""
+        if policy in self.vectors:
+            return self.vectors[policy].act(belief), 0.0
+        if policy in self.lift:
+            result = self.lift[policy].plan(belief, rng=rng, point=point)
+            return result.action, result.planning_ms
+        cells = rng.choice(len(belief), size=self.rel.despot_particles, p=belief)[:, None]
+        if policy == "rel-despot":
+            result = self.rel_despot.plan(cells, rng=rng)
+        else:
+            result = self.lat[policy].plan(cells, rng=rng, point=point)
+        return result.action, result.planning_ms
+
+    def run(self, policy: str, kind: str, seed_key: tuple[int, ...]) -> LatEpisode:
+        """One episode of ``policy`` on the ``kind`` Lat-POMDP (see the module docstring)."""
+        rng = np.random.default_rng(seed_key)
+        lat, model, horizon = self.models[kind], self.model, self.rel.horizon
+        gamma = lat.discount
+        if kind == "continuous":
+            state = lat.from_poses(self.lattice.start_point,
+                                   self.belief.sample(model.world, 1, rng=rng))
+        else:
+            cell = rng.choice(len(self.initial), p=self.initial)
+            state = lat.with_point(self.lattice.start_point, np.array([[cell]]))
+        belief = self.initial.copy()
+        in_goal = np.zeros(horizon + 1, dtype=bool)
+        in_goal[0] = self._in_goal(lat, state)
+        self.lattice.reset_asked()
+        planning, asked = [], []
+        total, infeasible, unmodelled = 0.0, False, False
+        for t in range(horizon):
+            point = int(state[0, 0])
+            before = int(self.lattice.asked.sum())
+            action, ms = self.decide(policy, point, belief, rng)
+            planning.append(ms)
+            asked.append(int(self.lattice.asked.sum()) - before)
+            step = lat.step(state, action, rng.random((1, lat.uniforms_per_step)))
+            if step.next_states[0, 0] == BAD:
+                infeasible = not bool(self.lattice.feasible([point], [action])[0])
+                unmodelled = not infeasible
+                total -= float(np.sum(gamma ** np.arange(t, horizon)))
+                break
+            total += gamma ** t * float(step.rewards[0])
+            belief, _ = belief_update(model.pomdp, belief, action, int(step.observations[0]))
+            state = step.next_states
+            in_goal[t + 1] = self._in_goal(lat, state)
+        keep = policy == "lat-despot"
+        return LatEpisode(in_goal, total, infeasible, unmodelled, np.array(planning),
+                          int(self.lattice.asked.sum()),
+                          float(np.median(asked)) if asked else 0.0,
+                          self.lattice.asked.copy() if keep else None,
+                          self.lattice.status.copy() if keep else None)
+
+    def _in_goal(self, lat: LatticePOMDP, state: np.ndarray) -> bool:
+        """The object in the goal (continuous model; the discrete one reports no success)."""
+        return bool(lat.continuous and self.model.in_goal(state[:, 1:])[0])
+
+
+class _Worker:
+    """A process's problem (built once) and its scenes (built when first asked)."""
+
+    def __init__(self, rel: RelSettings, scenes: SceneSettings, solved: Solved):
+        self.rel, self.scenes, self.solved = rel, scenes, solved
+        self.model, self.belief, self.initial = build_rel_problem(rel)
+        self._scenes: dict[str, SceneEpisodes] = {}
+
+    def run(self, job: tuple[str, str, str, int]) -> LatEpisode:
+        scene, policy, kind, j = job
+        if scene not in self._scenes:
+            self._scenes[scene] = SceneEpisodes(self.rel, self.scenes, self.solved,
+                                                self.model, self.belief, self.initial, scene)
+        key = (self.rel.seed, EPISODE_STREAM, self.scenes.scenes.index(scene),
+               POLICIES.index(policy), MODELS.index(kind), j)
+        return self._scenes[scene].run(policy, kind, key)
+
+
+_WORKER: _Worker | None = None
+
+
+def _start(rel, scenes, solved) -> None:
+    global _WORKER
+    _WORKER = _Worker(rel, scenes, solved)
+
+
+def _run(job) -> LatEpisode:
+    return _WORKER.run(job)
+
+
+def run_episodes(rel: RelSettings, scenes: SceneSettings, solved: Solved,
+                 jobs: list[tuple[str, str, str, int]], *, workers: int = 1
+                 ) -> list[LatEpisode]:
+    """The episodes of ``jobs`` ((scene, policy, model, j)), in job order, in ``workers``
+    spawned processes (the results do not depend on it)."""
+    bar = tqdm(total=len(jobs), desc="latdespot scenes", unit="episode")
+    out = []
+    if workers <= 1:
+        worker = _Worker(rel, scenes, solved)
+        for job in jobs:
+            out.append(worker.run(job))
+            bar.update()
+    else:
+        context = multiprocessing.get_context("spawn")
+        with context.Pool(workers, initializer=_start, initargs=(rel, scenes, solved)) as pool:
+            for episode in pool.imap(_run, jobs):
+                out.append(episode)
+                bar.update()
+    bar.close()
+    return out
+
+
+def summarise(episodes: list[LatEpisode], kind: str) -> dict:
+    """One policy's entry on one model."""
+    returns = np.array([e.discounted_return for e in episodes])
+    planning = np.concatenate([e.planning_ms for e in episodes])
+    out = {"discounted_value": float(returns.mean()),
+           "discounted_value_ci95": half_width(returns),
+           "planning_ms_median": float(np.median(planning)),
+           "planning_ms_p99": float(np.percentile(planning, 99)),
+           "infeasible_rate": float(np.mean([e.infeasible for e in episodes])),
+           "unmodelled_contact_rate": float(np.mean([e.unmodelled for e in episodes])),
+           "lattice_edges_asked_per_episode": float(np.median(
+               [e.edges_asked for e in episodes])),
+           "lattice_edges_asked_per_decision": float(np.median(
+               [e.edges_asked_per_decision for e in episodes])),
+           "trials": len(episodes)}
+    if kind == "continuous":
+        success = np.stack([e.in_goal for e in episodes], axis=1)
+        lo, hi = wilson_interval(int(success[-1].sum()), len(episodes))
+        out.update(success_rate=float(success[-1].mean()), success_rate_ci95=[lo, hi],
+                   success_over_time=success.mean(axis=1).tolist())
+    return out
+
+
+def scene_entry(discrete: dict, continuous: dict) -> dict:
+    """A policy's summary entry: the value on the discrete model (Fig. 7.4-Top), success,
+    infeasible and un-modelled contact rates on the continuous one (Middle, Bottom), and
+    its planning times over both."""
+    entry = {"discounted_value": discrete["discounted_value"],
+             "discounted_value_ci95": discrete["discounted_value_ci95"],
+             "value_model": "discrete",
+             "discrete_infeasible_rate": discrete["infeasible_rate"]}
+    for key in ("success_rate", "success_rate_ci95", "success_over_time", "infeasible_rate",
+                "unmodelled_contact_rate", "lattice_edges_asked_per_episode",
+                "lattice_edges_asked_per_decision", "trials"):
+        entry[key] = continuous[key]
+    entry["continuous_discounted_value"] = continuous["discounted_value"]
+    entry["continuous_discounted_value_ci95"] = continuous["discounted_value_ci95"]
+    entry["planning_ms_median"] = float(np.median([discrete["planning_ms_median"],
+                                                   continuous["planning_ms_median"]]))
+    entry["planning_ms_p99"] = max(discrete["planning_ms_p99"], continuous["planning_ms_p99"])
+    return entry
+
+
+def run_scenes(rel: RelSettings, scenes: SceneSettings, solved: Solved, out: Path, *,
+               workers: int = 1, policies: tuple[str, ...] = POLICIES) -> dict:
+    """Every (scene, policy) pair on both models; returns ``{scene: {policy: entry}}`` and
+    writes ``lattice_<scene>.npz`` (the edges Lat-DESPOT's first continuous episode asked
+    for) for the lattice figure."""
+    jobs = [(scene, policy, kind, j) for scene in scenes.scenes for policy in policies
+            for kind in MODELS for j in range(rel.trials)]
+    episodes = dict(zip(jobs, run_episodes(rel, scenes, solved, jobs, workers=workers),
+                        strict=True))
+    result: dict[str, dict] = {}
+    for scene in scenes.scenes:
+        result[scene] = {}
+        for policy in policies:
+            by_model = {kind: [episodes[(scene, policy, kind, j)] for j in range(rel.trials)]
+                        for kind in MODELS}
+            result[scene][policy] = scene_entry(summarise(by_model["discrete"], "discrete"),
+                                                summarise(by_model["continuous"],
+                                                          "continuous"))
+        first = episodes.get((scene, "lat-despot", "continuous", 0))
+        if first is not None:
+            save_lattice(out / f"lattice_{Path(scene).stem}.npz", scene, rel, scenes, first)
+    return result
+
+
+def save_lattice(path: Path, scene_name: str, rel: RelSettings, scenes: SceneSettings,
+                 episode: LatEpisode) -> None:
+    """The data of the lattice figure (thesis Fig. 7.1): every point's world pose and
+    whether it has a configuration, the edges ``episode`` asked for and their answers, the
+    obstacles' footprints and the hand's start."""
+    from planning.hand.discretization import HandProblemSpec
+
+    scene = SceneSpec.load(scene_name, object_override=rel.object_name)
+    problem = HandProblemSpec.load(rel.problem)
+    spec = lattice_spec(scene, problem.step_m, scenes)
+    cache = None if scenes.cache_dir is None else Path(scenes.cache_dir)
+    table = load_ik_table(scene, spec, cache_dir=cache, progress=False)
+    footprints = [pose_points(o.pose.as_array()[None], o.spec.footprint())[0]
+                  for o in scene.obstacles]
+    np.savez_compressed(path, poses=spec.poses(np.arange(spec.size)),
+                        neighbours=spec.neighbours(problem.action_vectors()),
+                        reachable=table.reachable, asked=episode.asked,
+                        status=episode.status,
+                        obstacles=np.concatenate(footprints) if footprints else np.zeros((0, 2)),
+                        obstacle_sizes=np.array([len(f) for f in footprints], dtype=int),
+                        start=np.asarray(spec.start))
+
+
+def bound_check(rel_values: dict, scenes: dict) -> dict:
+    """Theorem 7.2 (sec. 7.3.5): each scene's best Lat-POMDP value against the Rel-POMDP
+    values of Rel-SARSOP and Rel-DESPOT (``rel_values``: ``{policy: entry}`` of part rel,
+    discrete model). ``holds``: the best Lat value is at most both Rel values;
+    ``holds_within_ci95``: at most them up to the two 95 % half-widths (what a finite
+    number of episodes can show)."""
+    rel = {name: rel_values[name] for name in ("rel-sarsop", "rel-despot")
+           if name in rel_values}
+    out = {"rel_pomdp": {name: {"discounted_value": e["discounted_value"],
+                                "discounted_value_ci95": e["discounted_value_ci95"]}
+                         for name, e in rel.items()}, "scenes": {}}
+    for scene, entries in scenes.items():
+        name = max(entries, key=lambda p: entries[p]["discounted_value"])
+        best, half = entries[name]["discounted_value"], entries[name]["discounted_value_ci95"]
+        out["scenes"][scene] = {
+            "best_lat_policy": name, "best_lat_value": best, "best_lat_value_ci95": half,
+            "holds": all(best <= e["discounted_value"] for e in rel.values()),
+            "holds_within_ci95": all(best - half <= e["discounted_value"]
+                                     + e["discounted_value_ci95"] for e in rel.values())}
+    out["holds"] = all(s["holds"] for s in out["scenes"].values())
+    out["holds_within_ci95"] = all(s["holds_within_ci95"] for s in out["scenes"].values())
+    return out
+
+
+def settings_dict(rel: RelSettings, scenes: SceneSettings) -> dict:
+    return {**asdict(rel), "scenes": asdict(scenes)}
