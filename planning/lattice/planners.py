@@ -84,8 +84,8 @@ class LiftPolicy:
         point = lattice_point(self.lattice, point=point, palm_pose=palm_pose)
         action = self.act(point, belief)
         values = self.vectors.action_values(belief)
-        known = self.lattice.status[point] == 1
-        ranking = (action, *[a for a in lifted_ranking(values, known) if a != action])
+        feasible = self.lattice.feasible_actions(point)  # the fallback order: all of them
+        ranking = (action, *[a for a in lifted_ranking(values, feasible) if a != action])
         return PlanResult(action, ranking, self.phase, (time.perf_counter() - start) * 1e3)
 
 
