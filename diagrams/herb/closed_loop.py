@@ -21,6 +21,7 @@ contact manifold, the solved policy, the IK) are members of the systems.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer
@@ -31,6 +32,7 @@ from diagrams.belief_drawing import BeliefDrawer
 from diagrams.herb.controller import HandController
 from diagrams.herb.estimator import HandEstimator
 from diagrams.herb.executor import ActionExecutor
+from diagrams.herb.lattice_drawing import LatticeDrawer
 from diagrams.herb.poses import PlanarPoses
 from diagrams.herb.settings import EpisodeSettings
 from diagrams.herb.station import add_herb_plant, add_meshcat
@@ -41,13 +43,22 @@ from estimation.particles.belief import ParticleBelief
 from estimation.particles.factory import make_filter
 from models.contact import SimulationConfig
 from models.herb.kinematics import PlanarHandIK
-from models.herb.motion import HandMotionPlanner
+from models.herb.motion import HandMotionPlanner, MotionPlanner
 from models.herb.scene import SceneSpec
 from models.herb.tactile import SensorGroups, TactileLayout
 from models.herb.world import HerbWorld
 from planning.hand.model import goal_region
 from planning.hand.planner import HandPlanner, ThesisHandPlanner
 from planning.hand.solution import HandSolution
+from planning.lattice.contact import UnmodelledContact
+from planning.lattice.grid import LatticeSpec
+from planning.lattice.ik_table import load_ik_table
+from planning.lattice.lattice import ConfigurationLattice
+from planning.lattice.motion import LatticeMotion
+from planning.lattice.planners import LatDespotPlanner
+from planning.lattice.pomdp import LatticePOMDP
+from planning.pomdp.despot import DespotSettings
+from planning.protocols import Planner
 
 
 def estimator_filter(kind: str, world) -> ParticleFilter:
@@ -73,8 +84,58 @@ class ClosedLoopDiagram:
     visualizer: MeshcatVisualizer | None
 
 
+@dataclass
+class ControllerParts:
+    """What the controller and executor run: the planner, the motion planner of actions,
+    the arm's start (7,) rad (the palm at the scene's hand start), and the lattice (for the
+    ``lat-despot`` planner, else None)."""
+
+    planner: Planner
+    motion: MotionPlanner
+    q_start: np.ndarray
+    lattice: ConfigurationLattice | None = None
+
+
+class InfeasibleStart(RuntimeError):
+    """The hand's start pose cannot be reached (IK)."""
+
+
+def controller_parts(settings: EpisodeSettings, solution: HandSolution, scene: SceneSpec, *,
+                     cache_dir: Path | None = None) -> ControllerParts:
+    """The planner of ``settings.planner`` for ``scene`` (see
+    :class:`~diagrams.herb.settings.EpisodeSettings`). For ``lat-despot``, the scene's
+    lattice at the model's step (its IK table from ``cache_dir``, solved there when
+    missing) and Lat-POMDP on the solution's hand-relative model; the arm starts at the
+    lattice's start configuration.
+
+    Raises:
+        InfeasibleStart: the hand's start pose is unreachable.
+    """
+    model = solution.model
+    start = scene.hand_start.as_array()
+    if settings.planner == "lat-despot":
+        spec = LatticeSpec(start=tuple(float(v) for v in start), resolution_m=model.spec.step_m)
+        try:
+            table = load_ik_table(scene, spec, cache_dir=cache_dir, progress=False)
+        except ValueError as err:
+            raise InfeasibleStart(str(err)) from err
+        lattice = ConfigurationLattice(scene, table, model.spec.action_vectors())
+        pomdp = LatticePOMDP(model, lattice, UnmodelledContact(scene), inner="discrete")
+        planner = LatDespotPlanner(pomdp, DespotSettings(
+            max_trials=settings.lat_despot_trials, seconds=settings.lat_despot_seconds))
+        return ControllerParts(planner, LatticeMotion(lattice), table.q[spec.start_point],
+                               lattice)
+    ik = PlanarHandIK(scene, posture_weight=settings.posture_weight)
+    first = ik.solve_multistart(start, rng=np.random.default_rng([settings.seed, 1]))
+    if not first.feasible:
+        raise InfeasibleStart(f"hand start {np.round(start, 3).tolist()}: {first.reason}")
+    planner_type = HandPlanner if settings.planner_belief == "estimator" else ThesisHandPlanner
+    planner = planner_type(model, solution.policies[settings.policy], settings.precontact)
+    return ControllerParts(planner, HandMotionPlanner(ik), first.q)
+
+
 def build_closed_loop(settings: EpisodeSettings, solution: HandSolution, scene: SceneSpec,
-                      ik: PlanarHandIK, q_start: np.ndarray, initial: ParticleBelief, *,
+                      parts: ControllerParts, initial: ParticleBelief, *,
                       layout: TactileLayout, meshcat: Meshcat | None = None,
                       filter: ParticleFilter | None = None) -> ClosedLoopDiagram:
     """Wire the diagram of the module docstring.
@@ -83,8 +144,8 @@ def build_closed_loop(settings: EpisodeSettings, solution: HandSolution, scene: 
         settings: the episode.
         solution: the solved planning model.
         scene: the scene with the object already placed.
-        ik: the arm's IK for the scene.
-        q_start: (7,) rad, the arm's start, with the palm at the scene's hand start.
+        parts: the planner, the motion planner and the arm's start
+            (:func:`controller_parts`).
         initial: the estimator's initial belief (hand frame).
         layout: the Drake tactile layout.
         meshcat: draw there (``None``: no drawing).
@@ -92,7 +153,7 @@ def build_closed_loop(settings: EpisodeSettings, solution: HandSolution, scene: 
             ``settings.estimator``).
     """
     model, world = solution.model, solution.model.world
-    motion = HandMotionPlanner(ik)
+    motion = parts.motion
     builder = DiagramBuilder()
     sim = SimulationConfig(time_step_s=settings.time_step_s)
     plant, scene_graph, herb = add_herb_plant(builder, scene, layout=layout, sim=sim)
@@ -113,13 +174,11 @@ def build_closed_loop(settings: EpisodeSettings, solution: HandSolution, scene: 
                     estimator.GetInputPort("sensor_contact"))
     builder.Connect(poses.GetOutputPort("palm_pose"), estimator.GetInputPort("palm_pose"))
     actions = model.spec.action_vectors()
-    planner_type = HandPlanner if settings.planner_belief == "estimator" else ThesisHandPlanner
-    planner = planner_type(model, solution.policies[settings.policy], settings.precontact)
     controller = builder.AddSystem(HandController(
-        planner, motion, actions, initial, world.sensor_count, horizon=settings.horizon,
+        parts.planner, motion, actions, initial, world.sensor_count, horizon=settings.horizon,
         on_infeasible=settings.on_infeasible, seed=settings.seed))
     executor = builder.AddSystem(ActionExecutor(motion, actions, scene.hand_start.as_array(),
-                                                q_start,
+                                                parts.q_start,
                                                 hand_speed_m_per_s=settings.hand_speed_m_per_s))
     builder.Connect(estimator.GetOutputPort("belief"), controller.GetInputPort("belief"))
     builder.Connect(estimator.GetOutputPort("contact_seen"),
@@ -143,6 +202,11 @@ def build_closed_loop(settings: EpisodeSettings, solution: HandSolution, scene: 
         builder.Connect(poses.GetOutputPort("palm_pose"), drawer.GetInputPort("palm_pose"))
         builder.Connect(tactile.GetOutputPort("sensor_contact"),
                         drawer.GetInputPort("sensor_contact"))
+        if parts.lattice is not None:
+            lattice_drawer = builder.AddSystem(LatticeDrawer(
+                meshcat, parts.lattice, height_m=herb.table_top_z_m + 0.003))
+            builder.Connect(executor.GetOutputPort("executor_state"),
+                            lattice_drawer.GetInputPort("executor_state"))
     return ClosedLoopDiagram(builder.Build(), plant, herb, tactile, poses, estimator,
                              controller, executor, visualizer)
 

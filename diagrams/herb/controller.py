@@ -13,7 +13,7 @@ from pydrake.systems.framework import EventStatus, LeafSystem
 
 from diagrams.herb.executor import EXECUTOR_STATE_SIZE
 from estimation.particles.belief import ParticleBelief
-from models.herb.motion import HandMotionPlanner
+from models.herb.motion import MotionPlanner
 from models.herb.mount import NUM_ARM_JOINTS
 from planning.protocols import Planner
 
@@ -68,8 +68,10 @@ class HandController(LeafSystem):
 
     Args:
         planner: answers ``plan(belief, *, rng, memory, contact_seen, last_action,
-            reading) -> PlanResult``.
-        motion: the IK of actions (shared with the executor).
+            reading, palm_pose) -> PlanResult`` (``palm_pose``: the commanded palm pose the
+            action starts from, world frame).
+        motion: the joint paths of actions (IK, or the lattice's edges; shared with the
+            executor).
         action_vectors: (A, 3) hand-frame displacement of each action (m, m, rad).
         initial: the initial belief (for the input port's model value).
         sensor_count: S.
@@ -81,7 +83,7 @@ class HandController(LeafSystem):
         check_period_s: how often to check (s).
     """
 
-    def __init__(self, planner: Planner, motion: HandMotionPlanner, action_vectors: np.ndarray,
+    def __init__(self, planner: Planner, motion: MotionPlanner, action_vectors: np.ndarray,
                  initial: ParticleBelief, sensor_count: int, *, horizon: int,
                  on_infeasible: str = "stop", seed: int = 0, check_period_s: float = 0.02):
         super().__init__()
@@ -118,12 +120,13 @@ class HandController(LeafSystem):
         k = len(previous.decisions)
         belief = self._belief.Eval(context)
         last = previous.decisions[-1].action if previous.decisions else -1
+        pose, q = executor[:3], executor[3:3 + NUM_ARM_JOINTS]
         result = self._planner.plan(belief, rng=np.random.default_rng([self._seed, k]),
                                     memory=previous.memory,
                                     contact_seen=bool(self._contact.Eval(context)[0] > 0.5),
                                     last_action=last if last >= 0 else None,
-                                    reading=self._readings.Eval(context) > 0.5)
-        pose, q = executor[:3], executor[3:3 + NUM_ARM_JOINTS]
+                                    reading=self._readings.Eval(context) > 0.5,
+                                    palm_pose=pose.copy())
         chosen, rejected = -1, []
         for a in result.ranking:
             path = self._motion.plan(pose, q, self._actions[a])

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import Meshcat
@@ -20,13 +21,16 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import EventStatus
 from tqdm import tqdm
 
-from diagrams.herb.closed_loop import ClosedLoopDiagram, build_closed_loop
+from diagrams.herb.closed_loop import (
+    ClosedLoopDiagram,
+    build_closed_loop,
+    controller_parts,
+)
 from diagrams.herb.controller import Decision
 from diagrams.herb.metrics import summarise_episode
 from diagrams.herb.settings import TOPPLED_RAD, EpisodeSettings
 from estimation.hand.tracker import ParticleFilter
 from estimation.particles.belief import ParticleBelief
-from models.herb.kinematics import PlanarHandIK
 from models.herb.scene import PlanarPose, SceneSpec
 from models.herb.tactile import TactileLayout
 from models.objects import ObjectSpec
@@ -34,12 +38,10 @@ from models.se2 import compose, inverse
 from planning.hand.model import HandPOMDP, goal_region
 from planning.hand.solution import HandSolution
 
+#: Where the lattice's IK table is kept by default (relative to the working directory).
+DEFAULT_LATTICE_CACHE = Path("out/cache")
 TRACE_PERIOD_S = 0.05
 """The trace's sampling period (s); the end conditions are checked at the same instants."""
-
-
-class InfeasibleStart(RuntimeError):
-    """The hand's start pose cannot be reached (IK)."""
 
 
 @dataclass
@@ -121,7 +123,8 @@ class EpisodeWatch:
 
 def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
                 meshcat: Meshcat | None = None, progress: bool = True,
-                filter: ParticleFilter | None = None) -> Episode:
+                filter: ParticleFilter | None = None,
+                cache_dir: Path | None = DEFAULT_LATTICE_CACHE) -> Episode:
     """Run one episode (see the module docstring).
 
     Args:
@@ -131,6 +134,7 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
         progress: show a progress bar over the decisions.
         filter: the estimator's filter, to share one contact manifold across episodes
             (:func:`~diagrams.herb.closed_loop.estimator_filter`; default: built here).
+        cache_dir: where the ``lat-despot`` planner's lattice IK table is kept.
 
     Raises:
         InfeasibleStart: the hand's start pose is unreachable.
@@ -150,17 +154,14 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
     scene = SceneSpec.load(settings.scene, object_override=settings.object_name)
     layout = TactileLayout.load(settings.layout)
     start = scene.hand_start.as_array()
-    ik = PlanarHandIK(scene, posture_weight=settings.posture_weight)
-    first = ik.solve_multistart(start, rng=np.random.default_rng([settings.seed, 1]))
-    if not first.feasible:
-        raise InfeasibleStart(f"hand start {np.round(start, 3).tolist()}: {first.reason}")
+    parts = controller_parts(settings, solution, scene, cache_dir=cache_dir)
     scene = replace(scene, object_pose=PlanarPose(*compose(start, true_rel)))
-    loop = build_closed_loop(settings, solution, scene, ik, first.q, initial, layout=layout,
+    loop = build_closed_loop(settings, solution, scene, parts, initial, layout=layout,
                              meshcat=meshcat, filter=filter)
     plant, herb, visualizer = loop.plant, loop.herb, loop.visualizer
     context = loop.diagram.CreateDefaultContext()
     plant.SetPositions(plant.GetMyMutableContextFromRoot(context),
-                       herb.robot_positions(plant, first.q))
+                       herb.robot_positions(plant, parts.q_start))
     simulator = Simulator(loop.diagram, context)
     if meshcat is not None:
         meshcat.SetProperty("/Grid", "visible", False)
@@ -172,7 +173,8 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
     actions = model.spec.action_vectors()
     longest = float(np.max(np.linalg.norm(actions[:, :2], axis=1)))
     limit_s = 1.0 + settings.horizon * (longest / settings.hand_speed_m_per_s + 0.6) + 30.0
-    bar = tqdm(total=settings.horizon, desc=f"episode ({settings.policy})", unit="decision",
+    label = settings.policy if settings.planner == "hand" else settings.planner
+    bar = tqdm(total=settings.horizon, desc=f"episode ({label})", unit="decision",
                disable=not progress, leave=False)
     watch = EpisodeWatch(loop, scene, model, bar)
     simulator.set_monitor(watch)
@@ -191,6 +193,12 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
     refused = loop.executor.motion(loop.executor.GetMyContextFromRoot(root)).refused
     summary = summarise_episode(settings, solution, arrays, decisions,
                                 goal_region(world, model.spec), watch.stop, wall_s, refused)
+    if parts.lattice is not None:
+        stats = parts.lattice.stats()
+        summary["lattice"] = {"points": stats.points, "edges": stats.edges,
+                              "edges_evaluated": stats.edges_evaluated,
+                              "edge_fraction_evaluated": stats.edge_fraction,
+                              "edges_feasible": stats.edges_feasible}
     return Episode(summary, arrays, _snapshots(decisions, arrays), html)
 
 

@@ -15,7 +15,7 @@ from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
 from models.herb.kinematics import time_parameterize
-from models.herb.motion import HandMotionPlanner
+from models.herb.motion import MotionPlanner
 from models.herb.mount import NUM_ARM_JOINTS
 
 EXECUTOR_STATE_SIZE = 3 + NUM_ARM_JOINTS + 1
@@ -38,13 +38,13 @@ class Motion:
 
 
 class ActionExecutor(LeafSystem):
-    """Turns each commanded action into an arm motion: the joint path from
-    :class:`HandMotionPlanner`, timed at ``hand_speed_m_per_s`` within the joints' velocity
+    """Turns each commanded action into an arm motion: the joint path from the motion
+    planner (IK, or the lattice's edge), timed at ``hand_speed_m_per_s`` within the joints' velocity
     limits, tracked by the plant's joint PD controllers.
 
     A command whose motion is infeasible is refused (counted in ``refused``; the arm holds
     still): the controller is meant never to send one. The current :class:`Motion` is the
-    Context state; the motion planner (Drake IK over a kinematic copy of the robot) is a
+    Context state; the motion planner (over a kinematic copy of the robot) is a
     member, shared with the controller.
 
     Input port: ``command`` (2).
@@ -52,7 +52,7 @@ class ActionExecutor(LeafSystem):
     ``executor_state`` (11; see the module docstring).
 
     Args:
-        motion: the IK of actions (shared with the controller).
+        motion: the joint paths of actions (shared with the controller).
         action_vectors: (A, 3) hand-frame displacement of each action (m, m, rad).
         start_pose: (3,) the palm's planar world pose at the start; start_q: (7,) the arm
             angles there.
@@ -63,7 +63,7 @@ class ActionExecutor(LeafSystem):
             one instant all read the state from before that instant).
     """
 
-    def __init__(self, motion: HandMotionPlanner, action_vectors: np.ndarray,
+    def __init__(self, motion: MotionPlanner, action_vectors: np.ndarray,
                  start_pose: np.ndarray, start_q: np.ndarray, *,
                  hand_speed_m_per_s: float = 0.05, settle_s: float = 0.2,
                  check_period_s: float = 0.02):

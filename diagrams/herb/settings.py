@@ -13,6 +13,7 @@ from planning.hand.precontact import PreContactSettings
 ESTIMATORS = ("mpf", "cpf")
 PLANNER_BELIEFS = ("estimator", "thesis")
 POLICIES = ("qmdp", "pomdp")
+PLANNERS = ("hand", "lat-despot")
 #: The thesis' three initial beliefs (sec. 6.5): means 35 cm ahead at lateral offsets 12,
 #: 0 and 6 cm; its figure shows the first to the hand's right (-y).
 THESIS_BELIEF_MEANS = ((0.35, -0.12, 0.0), (0.35, 0.0, 0.0), (0.35, 0.06, 0.0))
@@ -30,7 +31,14 @@ class EpisodeSettings:
             real-robot trials pushed a bottle (sec. 6.5), and so do these: the small box
             of the simulations (3.5 cm x 5 cm, 12 cm tall) topples in Drake when a finger
             pushes it above about 5 cm, which HERB's fingers do (F2 at about 8.5 cm).
-        policy: post-contact policy, ``qmdp`` or ``pomdp``.
+        planner: ``hand``: the hand-relative planner of ch. 6 (pre-contact search, then
+            ``policy``), blind to the arm; ``lat-despot``: Lat-DESPOT (thesis ch. 7) on the
+            same hand-relative model over the scene's configuration lattice (the model's
+            step apart), its scenarios drawn from the estimator's particles, the arm moved
+            along the lattice edges it checked.
+        policy: post-contact policy of the ``hand`` planner, ``qmdp`` or ``pomdp``.
+        lat_despot_trials: DESPOT trials per Lat-DESPOT decision (None: the wall-clock
+            cap alone); lat_despot_seconds: its wall-clock cap per decision (s).
         estimator: ``mpf`` (manifold particle filter, analytic manifold) or ``cpf``.
         planner_belief: what the policy acts on: ``estimator`` (the estimator system's
             belief, discretised after contact; :class:`~planning.hand.planner.HandPlanner`)
@@ -61,7 +69,10 @@ class EpisodeSettings:
 
     scene: str = "closed_loop"
     object_name: str = "bottle"
+    planner: str = "hand"
     policy: str = "pomdp"
+    lat_despot_trials: int | None = 100
+    lat_despot_seconds: float = 2.0
     estimator: str = "mpf"
     planner_belief: str = "estimator"
     belief_mean: tuple[float, float, float] = THESIS_BELIEF_MEANS[1]
@@ -79,6 +90,14 @@ class EpisodeSettings:
     seed: int = 0
 
     def __post_init__(self):
+        if self.planner not in PLANNERS:
+            raise ValueError(f"planner must be one of {PLANNERS}, got {self.planner!r}")
+        if self.lat_despot_trials is not None and self.lat_despot_trials < 1:
+            raise ValueError(f"lat_despot_trials must be >= 1 or None, got "
+                             f"{self.lat_despot_trials}")
+        if self.lat_despot_seconds <= 0:
+            raise ValueError(f"lat_despot_seconds must be > 0 s, got "
+                             f"{self.lat_despot_seconds}")
         if self.policy not in POLICIES:
             raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
         if self.estimator not in ESTIMATORS:

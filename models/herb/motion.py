@@ -16,6 +16,7 @@ needs the same joint path; the last few answers are kept, so the second request 
 from __future__ import annotations
 
 from collections import OrderedDict
+from typing import Protocol
 
 import numpy as np
 
@@ -23,6 +24,18 @@ from models.herb.kinematics import JointPath, PlanarHandIK, solve_chain
 from models.se2 import compose
 
 CACHE_SIZE = 32
+
+
+class MotionPlanner(Protocol):
+    """What the closed loop's controller and executor need of a motion planner: the joint
+    path of a hand-frame action (:class:`HandMotionPlanner`: IK along the straight palm
+    path; :class:`planning.lattice.motion.LatticeMotion`: the lattice's edge), and the
+    kinematic model whose velocity limits time it."""
+
+    ik: PlanarHandIK
+
+    def plan(self, pose_W: np.ndarray, q: np.ndarray, action_H: np.ndarray) -> JointPath:
+        """The joint path that moves the palm by ``action_H`` from ``pose_W`` and ``q``."""
 
 
 def world_target(pose_W: np.ndarray, action_H: np.ndarray) -> np.ndarray:
