@@ -356,7 +356,8 @@ def _closedloop(args: argparse.Namespace) -> int:
     config = resolve_closedloop(args)
     solution = solve(config.solver, config.cache_dir, progress=not args.no_progress)
     summary = run_closedloop_study(config.study, solution, args.out,
-                                   progress=not args.no_progress)
+                                   progress=not args.no_progress,
+                                   cache_dir=Path(config.cache_dir))
     write_config(config, args.out)
     for name, result in summary["policies"].items():
         lo, hi = result["success_rate_ci95"]

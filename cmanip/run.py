@@ -13,6 +13,7 @@ from cmanip.options import setting_option, subcommand, wait_for_meshcat
 from diagrams.herb.settings import (
     ESTIMATORS,
     PLANNER_BELIEFS,
+    PLANNERS,
     POLICIES,
     THESIS_BELIEF_MEANS,
     EpisodeSettings,
@@ -24,6 +25,14 @@ SOLVER = RunConfig().solver
 
 
 EPISODE_OPTIONS = (
+    ("--planner", EPISODE.planner,
+     "the controller's planner: hand-relative (thesis ch. 6; pre-contact search, then the "
+     "post-contact policy), or Lat-DESPOT over the configuration lattice (ch. 7)",
+     {"choices": PLANNERS}),
+    ("--lat-despot-trials", EPISODE.lat_despot_trials,
+     "DESPOT trials per Lat-DESPOT decision (0: the wall-clock cap alone)", {"type": int}),
+    ("--lat-despot-seconds", EPISODE.lat_despot_seconds,
+     "Lat-DESPOT's wall-clock cap per decision (s)", {"type": float}),
     ("--estimator", EPISODE.estimator,
      "the estimator's filter: manifold (MPF) or conventional (CPF)", {"choices": ESTIMATORS}),
     ("--planner-belief", EPISODE.planner_belief,
@@ -70,7 +79,11 @@ def override_episode(episode: EpisodeSettings, args: argparse.Namespace) -> Epis
     episode = overridden(episode, args, {
         "scene": "scene", "object": "object_name", "policy": "policy",
         "estimator": "estimator", "planner_belief": "planner_belief",
-        "on_infeasible": "on_infeasible", "horizon": "horizon", "particles": "particles"})
+        "on_infeasible": "on_infeasible", "horizon": "horizon", "particles": "particles",
+        "planner": "planner", "lat_despot_seconds": "lat_despot_seconds"})
+    given = vars(args)
+    if "lat_despot_trials" in given:
+        episode = replace(episode, lat_despot_trials=given["lat_despot_trials"] or None)
     return replace(episode, precontact=overridden(episode.precontact, args,
                                                   {"plan_seconds": "time_limit_s"}))
 
@@ -130,7 +143,8 @@ def resolve_run(args: argparse.Namespace) -> RunConfig:
 
 
 def _run(args) -> int:
-    from diagrams.herb.episode import InfeasibleStart, run_episode
+    from diagrams.herb.closed_loop import InfeasibleStart
+    from diagrams.herb.episode import run_episode
     from diagrams.herb.report import write_episode
     from diagrams.meshcat import local_meshcat
 
@@ -142,7 +156,7 @@ def _run(args) -> int:
         print(f"Meshcat is live at {meshcat.web_url()}", flush=True)
     try:
         episode = run_episode(settings, solution, meshcat=meshcat,
-                              progress=not args.no_progress)
+                              progress=not args.no_progress, cache_dir=Path(config.cache_dir))
     except InfeasibleStart as err:
         print(f"cmanip: infeasible start: {err}", file=sys.stderr)
         return 3
@@ -157,11 +171,16 @@ def _run(args) -> int:
     belief = (f"belief {THESIS_BELIEF_MEANS.index(settings.belief_mean) + 1}"
               if settings.belief_mean in THESIS_BELIEF_MEANS else
               f"belief mean {list(settings.belief_mean)}")
-    print(f"{settings.policy}/{settings.estimator}, {belief}, seed {settings.seed}: "
+    planner = settings.policy if settings.planner == "hand" else settings.planner
+    lattice = ""
+    if "lattice" in s:
+        lattice = (f"; lattice evaluated: {s['lattice']['edges_evaluated']} edges "
+                   f"({s['lattice']['edge_fraction_evaluated']:.1%})")
+    print(f"{planner}/{settings.estimator}, {belief}, seed {settings.seed}: "
           f"{outcome} after {s['steps']} steps (stopped: {stop}); estimator RMSE mean "
           f"{100 * s['estimator_rmse_m']['mean']:.1f} cm; planning median "
           f"{s['planning_ms_median']:.1f} ms; {s['sim_time_s']:.1f} s simulated in "
-          f"{s['wall_time_s']:.1f} s")
+          f"{s['wall_time_s']:.1f} s{lattice}")
     print(f"wrote {args.out}/replay.html, summary.json, belief.png, config.yaml")
     if args.meshcat:
         wait_for_meshcat(meshcat.web_url())

@@ -56,25 +56,32 @@ class ClosedLoopSettings:
         if unknown:
             raise ValueError(f"policies must be drawn from {POLICIES}, got {self.policies}")
 
-    def episode_settings(self, policy: str, trial: int) -> EpisodeSettings:
-        """The settings of episode ``trial`` of ``policy``."""
+    @property
+    def runs(self) -> tuple[str, ...]:
+        """The summary's keys: the policies of the ``hand`` planner, or the planner."""
+        return self.policies if self.episode.planner == "hand" else (self.episode.planner,)
+
+    def episode_settings(self, run: str, trial: int) -> EpisodeSettings:
+        """The settings of episode ``trial`` of ``run`` (a policy, or the planner)."""
+        policy = run if self.episode.planner == "hand" else self.episode.policy
         return replace(self.episode, policy=policy,
                        belief_mean=self.beliefs[trial % len(self.beliefs)],
                        seed=int(np.random.SeedSequence([self.seed, trial]).generate_state(1)[0]))
 
 
 def run_closedloop_study(settings: ClosedLoopSettings, solution: HandSolution, out: Path, *,
-                         progress: bool = True) -> dict:
-    """Run every (policy, trial) episode; write and return the summary."""
+                         progress: bool = True, cache_dir: Path | None = None) -> dict:
+    """Run every (policy or planner, trial) episode; write and return the summary
+    (``cache_dir``: where the lattice's IK table is kept, for ``lat-despot``)."""
     out.mkdir(parents=True, exist_ok=True)
     shared = estimator_filter(settings.episode.estimator, solution.model.world)
     results: dict[str, dict] = {}
-    for policy in settings.policies:
+    for policy in settings.runs:
         trials = []
         for j in tqdm(range(settings.trials), desc=f"closed loop ({policy})", unit="episode",
                       disable=not progress):
             episode = run_episode(settings.episode_settings(policy, j), solution, progress=False,
-                                  filter=shared)
+                                  filter=shared, cache_dir=cache_dir)
             summary = episode.summary
             summary["trial"] = j
             summary["belief"] = j % len(settings.beliefs) + 1
@@ -109,5 +116,8 @@ def _aggregate(trials: list[dict]) -> dict:
         "final_distance_to_goal_m": [t["final_distance_to_goal_m"] for t in trials],
         "estimator_rmse_m_mean": float(np.mean([t["estimator_rmse_m"]["mean"]
                                                 for t in trials])),
+        "lattice_edge_fraction_median": (float(np.median(
+            [t["lattice"]["edge_fraction_evaluated"] for t in trials]))
+            if all("lattice" in t for t in trials) else None),
         "episodes": trials,
     }

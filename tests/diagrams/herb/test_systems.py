@@ -38,8 +38,9 @@ class FakePlanner:
         self.ranking = ranking
         self.calls = []
 
-    def plan(self, belief, *, rng, memory, contact_seen, last_action, reading):
+    def plan(self, belief, *, rng, memory, contact_seen, last_action, reading, palm_pose):
         self.calls.append((contact_seen, last_action, tuple(reading), memory))
+        self.palm_pose = palm_pose
         return PlanResult(self.ranking[0], tuple(self.ranking), "post-contact", 1.0,
                           memory=len(self.calls))
 

@@ -19,13 +19,9 @@ FORWARD, BACK, LEFT, RIGHT = range(4)
 
 
 @pytest.fixture(scope="module")
-def hand_model(tmp_path_factory):
-    path = tmp_path_factory.mktemp("problem") / "small.yaml"
-    from conftest import SMALL_PROBLEM
-
-    path.write_text(SMALL_PROBLEM)
+def hand_model(small_problem):
     world = PlanarWorld.load("bottle", sensors="fingertips", error_rate=0.0)
-    return build_hand_pomdp(world, HandProblemSpec.load(path),
+    return build_hand_pomdp(world, HandProblemSpec.load(small_problem),
                             rng=np.random.default_rng(0), progress=False)
 
 
