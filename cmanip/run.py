@@ -8,6 +8,8 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from cmanip.config import RunConfig, load_config, overridden, with_object, write_config
 from cmanip.options import setting_option, subcommand, wait_for_meshcat
 from diagrams.herb.settings import (
@@ -118,6 +120,11 @@ def register(commands) -> None:
     setting_option(run, "--belief", THESIS_BELIEF_MEANS.index(EPISODE.belief_mean) + 1,
                    "initial belief of thesis sec. 6.5 (means 35 cm ahead at lateral offsets "
                    "-12, 0, +6 cm; 2 is the centre)", type=int, choices=(1, 2, 3))
+    run.add_argument("--belief-mean", type=float, nargs=3, default=None,
+                     metavar=("X_M", "Y_M", "THETA_DEG"),
+                     help="initial belief mean in the hand frame instead of --belief's "
+                          "(e.g. 0.2 -0.05 0 for the ch. 7 scenes, whose clutter lies about "
+                          "35 cm ahead)")
     setting_option(run, "--seed", EPISODE.seed, "seeds the true pose, particles, sensors, "
                                                 "filter and planner", type=int)
     run.add_argument("--out", type=Path, required=True,
@@ -136,6 +143,9 @@ def resolve_run(args: argparse.Namespace) -> RunConfig:
     given = vars(args)
     if "belief" in given:
         episode = replace(episode, belief_mean=THESIS_BELIEF_MEANS[given["belief"] - 1])
+    if given.get("belief_mean") is not None:
+        x, y, theta_deg = given["belief_mean"]
+        episode = replace(episode, belief_mean=(x, y, float(np.deg2rad(theta_deg))))
     if "seed" in given:
         episode = replace(episode, seed=given["seed"])
     return RunConfig(episode, override_solver(config.solver, args),

@@ -86,3 +86,40 @@ def test_continuous_episodes_do_not_depend_on_the_worker_count(tmp_path):
     for a, b in zip(alone, spread, strict=True):
         np.testing.assert_array_equal(a.in_goal, b.in_goal)
         assert a.discounted_return == b.discounted_return
+
+
+def test_scenes_and_bound_run_end_to_end(tmp_path, capsys, small_problem):
+    config = tmp_path / "config.yaml"
+    config.write_text(yaml.safe_dump({"scenes": {
+        "lattice_x_range_m": [-0.04, 0.10], "lattice_y_range_m": [-0.12, 0.12],
+        "cache_dir": str(tmp_path / "cache")}}))
+    out = tmp_path / "lat"
+    assert main(["experiment", "latdespot", "--config", str(config), "--part", "bound",
+                 "--scene", "right_obstacles", "--trials", "2", "--horizon", "4",
+                 "--problem", str(small_problem), "--solve-trials", "5",
+                 "--despot-trials", "3", "--lat-despot-trials", "3", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    entries = summary["scenes"]["right_obstacles"]
+    assert set(entries) == {"rel-qmdp", "rel-sarsop", "rel-despot", "lift-qmdp",
+                            "lift-sarsop", "lat-despot", "lat-despot-pb"}
+    for entry in entries.values():
+        for key in ("success_rate", "success_rate_ci95", "infeasible_rate", "discounted_value",
+                    "discounted_value_ci95", "planning_ms_median", "planning_ms_p99"):
+            assert key in entry
+    for name in ("lift-qmdp", "lift-sarsop", "lat-despot", "lat-despot-pb"):
+        assert entries[name]["infeasible_rate"] == 0.0  # they check the lattice first
+    assert set(summary["rel"]) == {"rel-qmdp", "rel-sarsop", "rel-despot"}  # no continuous
+    bound = summary["bound"]["scenes"]["right_obstacles"]
+    assert bound["best_lat_policy"] in entries and isinstance(bound["holds"], bool)
+    assert (out / "lat_scenes.png").is_file() and (out / "lattice_right_obstacles.png").is_file()
+    config_out = yaml.safe_load((out / "config.yaml").read_text())
+    assert config_out["part"] == "bound" and config_out["scenes"]["scenes"] == ["right_obstacles"]
+    assert config_out["scenes"]["lat_despot_trials"] == 3
+    assert "bound of sec. 7.3.5" in capsys.readouterr().out
+
+
+def test_scene_options_are_checked(tmp_path, capsys):
+    out = tmp_path / "x"
+    assert main(["experiment", "latdespot", "--part", "scenes", "--scene", "no_such_scene",
+                 "--out", str(out)]) == 2
+    assert "no_such_scene" in capsys.readouterr().err
