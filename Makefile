@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml | $(BIN)/python
 # One closed-loop episode with the POMDP policy; the planning model is solved on first use
 # (about 45 s: 400 search trials) and kept in out/cache; the episode takes about 15 s.
 demo: $(STAMP)
-	$(BIN)/cmanip run --policy pomdp --seed 0 --out out/demo
+	$(BIN)/cmanip run --planner lat-despot --scene cul_de_sac --belief-mean 0.22 0 0 --seed 1 --out out/demo
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -m "not slow" -q
