@@ -67,7 +67,7 @@ from planning.lattice.contact import UnmodelledContact
 from planning.lattice.grid import LatticeSpec
 from planning.lattice.ik_table import load_ik_table
 from planning.lattice.lattice import ConfigurationLattice
-from planning.lattice.planners import LatDespotPlanner, LiftPolicy
+from planning.lattice.planners import LatDespotPlanner, LiftPolicy, check_budget
 from planning.lattice.pomdp import BAD, LatticePOMDP
 from planning.pomdp.despot import DespotSettings
 from planning.pomdp.generative import TabularGenerative
@@ -105,12 +105,7 @@ class SceneSettings:
     def __post_init__(self):
         if not self.scenes:
             raise ValueError("scenes must name at least one scene")
-        if self.lat_despot_trials is not None and self.lat_despot_trials < 1:
-            raise ValueError(f"lat_despot_trials must be >= 1 or None, got "
-                             f"{self.lat_despot_trials}")
-        if self.lat_despot_seconds <= 0:
-            raise ValueError(f"lat_despot_seconds must be > 0 s, got "
-                             f"{self.lat_despot_seconds}")
+        check_budget(self.lat_despot_trials, self.lat_despot_seconds)
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ import numpy as np
 from models.contact import SimulationConfig
 from models.herb.tactile import TactileNoise
 from planning.hand.precontact import PreContactSettings
+from planning.lattice.planners import check_budget
 
 ESTIMATORS = ("mpf", "cpf")
 PLANNER_BELIEFS = ("estimator", "thesis")
@@ -92,12 +93,7 @@ class EpisodeSettings:
     def __post_init__(self):
         if self.planner not in PLANNERS:
             raise ValueError(f"planner must be one of {PLANNERS}, got {self.planner!r}")
-        if self.lat_despot_trials is not None and self.lat_despot_trials < 1:
-            raise ValueError(f"lat_despot_trials must be >= 1 or None, got "
-                             f"{self.lat_despot_trials}")
-        if self.lat_despot_seconds <= 0:
-            raise ValueError(f"lat_despot_seconds must be > 0 s, got "
-                             f"{self.lat_despot_seconds}")
+        check_budget(self.lat_despot_trials, self.lat_despot_seconds)
         if self.policy not in POLICIES:
             raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
         if self.estimator not in ESTIMATORS:

@@ -32,6 +32,19 @@ from planning.protocols import PlanResult
 ON_LATTICE_M = 0.001
 
 
+def check_budget(trials: int | None, seconds: float) -> None:
+    """Refuse a Lat-DESPOT budget other than ``trials`` >= 1 (or None: the wall-clock cap
+    alone) per decision with a cap of ``seconds`` > 0.
+
+    Raises:
+        ValueError: naming the bad value.
+    """
+    if trials is not None and trials < 1:
+        raise ValueError(f"lat_despot_trials must be >= 1 or None, got {trials}")
+    if not seconds > 0:
+        raise ValueError(f"lat_despot_seconds must be > 0 s, got {seconds}")
+
+
 def lattice_point(lattice: ConfigurationLattice, *, point: int | None = None,
                   palm_pose: np.ndarray | None = None) -> int:
     """The robot's lattice point, given as ``point`` or as the palm's world pose (3,).

@@ -12,19 +12,6 @@ from models.config import ConfigError
 from models.planar.world import PlanarWorld
 from planning.hand.discretization import HandDiscretization, HandProblemSpec
 
-SMALL = """trust_x_m: [0.0, 0.20]
-trust_y_m: [-0.06, 0.06]
-free_cell_m: 0.02
-contact_states: false
-step_m: 0.02
-actions:
-  forward: [1, 0]
-  back: [-1, 0]
-  left: [0, 1]
-  right: [0, -1]
-samples_per_state: 6
-"""
-
 
 def test_the_chapter_7_problem_has_four_moves_and_one_grid():
     spec = HandProblemSpec.load("rel_ch7")
@@ -45,9 +32,8 @@ def test_problem_files_name_bad_actions(refused):
         HandProblemSpec.load("no_such_problem")
 
 
-def test_rel_runs_end_to_end_and_replays_its_config(tmp_path, capsys):
-    problem = tmp_path / "small.yaml"
-    problem.write_text(SMALL)
+def test_rel_runs_end_to_end_and_replays_its_config(tmp_path, capsys, small_problem):
+    problem = small_problem
     out = tmp_path / "rel"
     assert main(["experiment", "latdespot", "--part", "rel", "--trials", "4", "--horizon",
                  "6", "--problem", str(problem), "--solve-trials", "10", "--solve-seconds",
@@ -73,13 +59,11 @@ def test_rel_runs_end_to_end_and_replays_its_config(tmp_path, capsys):
     assert "rel-despot" in capsys.readouterr().out
 
 
-def test_continuous_episodes_do_not_depend_on_the_worker_count(tmp_path):
+def test_continuous_episodes_do_not_depend_on_the_worker_count(small_problem):
     from experiments.latdespot_continuous import run_continuous_episodes
     from experiments.latdespot_study import RelSettings, build_rel_problem
 
-    problem = tmp_path / "small.yaml"
-    problem.write_text(SMALL)
-    settings = RelSettings(trials=3, horizon=4, problem=str(problem),
+    settings = RelSettings(trials=3, horizon=4, problem=str(small_problem),
                            continuous_despot_trials=3)
     alone = run_continuous_episodes(settings, build_rel_problem, workers=1)
     spread = run_continuous_episodes(settings, build_rel_problem, workers=2)
