@@ -163,6 +163,8 @@ def _register_latdespot(studies) -> None:
     scenes = LATDESPOT.scenes
     setting_option(lat, "--scene", "all", "the scenes of parts scenes and bound (built-in "
                    f"name or YAML path, or all: {', '.join(scenes.scenes)})")
+    setting_option(lat, "--policies", "all", "the policies of part scenes (all: "
+                   f"{', '.join(scenes.policies)})", nargs="+", choices=[*scenes.policies, "all"])
     setting_option(lat, "--lat-despot-trials", scenes.lat_despot_trials,
                    "DESPOT trials per Lat-DESPOT decision (0: the wall-clock cap alone)",
                    type=int)
@@ -192,6 +194,8 @@ def resolve_latdespot(args: argparse.Namespace) -> LatDespotStudyConfig:
     if given.get("scene") is not None:
         scenes = replace(scenes, scenes=SCENES if given["scene"] == "all"
                          else (given["scene"],))
+    if given.get("policies") is not None and "all" not in given["policies"]:
+        scenes = replace(scenes, policies=tuple(given["policies"]))
     if given.get("lat_despot_trials") is not None:
         trials = given["lat_despot_trials"]
         scenes = replace(scenes, lat_despot_trials=trials if trials > 0 else None)

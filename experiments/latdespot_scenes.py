@@ -96,6 +96,7 @@ class SceneSettings:
     """
 
     scenes: tuple[str, ...] = SCENES
+    policies: tuple[str, ...] = POLICIES
     lat_despot_trials: int | None = 30
     lat_despot_seconds: float = 5.0
     lattice_x_range_m: tuple[float, float] = (-0.10, 0.40)
@@ -105,6 +106,9 @@ class SceneSettings:
     def __post_init__(self):
         if not self.scenes:
             raise ValueError("scenes must name at least one scene")
+        unknown = set(self.policies) - set(POLICIES)
+        if not self.policies or unknown:
+            raise ValueError(f"policies must be drawn from {POLICIES}, got {self.policies}")
         check_budget(self.lat_despot_trials, self.lat_despot_seconds)
 
 
@@ -355,10 +359,11 @@ def scene_entry(discrete: dict, continuous: dict) -> dict:
 
 
 def run_scenes(rel: RelSettings, scenes: SceneSettings, solved: Solved, out: Path, *,
-               workers: int = 1, policies: tuple[str, ...] = POLICIES) -> dict:
+               workers: int = 1) -> dict:
     """Every (scene, policy) pair on both models; returns ``{scene: {policy: entry}}`` and
     writes ``lattice_<scene>.npz`` (the edges Lat-DESPOT's first continuous episode asked
     for) for the lattice figure."""
+    policies = scenes.policies
     jobs = [(scene, policy, kind, j) for scene in scenes.scenes for policy in policies
             for kind in MODELS for j in range(rel.trials)]
     episodes = dict(zip(jobs, run_episodes(rel, scenes, solved, jobs, workers=workers),

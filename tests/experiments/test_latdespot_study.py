@@ -107,3 +107,19 @@ def test_scene_options_are_checked(tmp_path, capsys):
     assert main(["experiment", "latdespot", "--part", "scenes", "--scene", "no_such_scene",
                  "--out", str(out)]) == 2
     assert "no_such_scene" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        main(["experiment", "latdespot", "--part", "scenes", "--policies", "oracle",
+              "--out", str(out)])
+    assert exit_.value.code == 2
+
+
+def test_the_policies_option_selects_the_scene_policies():
+    from cmanip.cli import build_parser
+    from cmanip.experiment import resolve_latdespot
+
+    args = build_parser().parse_args(["experiment", "latdespot", "--part", "scenes",
+                                      "--policies", "lat-despot", "lift-sarsop",
+                                      "--lat-despot-trials", "0", "--out", "x"])
+    config = resolve_latdespot(args)
+    assert config.scenes.policies == ("lat-despot", "lift-sarsop")
+    assert config.scenes.lat_despot_trials is None  # 0: the wall-clock cap alone
