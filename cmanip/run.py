@@ -186,6 +186,9 @@ def _run(args) -> int:
     if "lattice" in s:
         lattice = (f"; lattice evaluated: {s['lattice']['edges_evaluated']} edges "
                    f"({s['lattice']['edge_fraction_evaluated']:.1%})")
+        if s["lattice"]["executed_clearance_min_m"] is not None:
+            lattice += (f"; closest arm pass "
+                        f"{100 * s['lattice']['executed_clearance_min_m']:.1f} cm")
     print(f"{planner}/{settings.estimator}, {belief}, seed {settings.seed}: "
           f"{outcome} after {s['steps']} steps (stopped: {stop}); estimator RMSE mean "
           f"{100 * s['estimator_rmse_m']['mean']:.1f} cm; planning median "

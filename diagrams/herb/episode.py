@@ -37,6 +37,8 @@ from models.objects import ObjectSpec
 from models.se2 import compose, inverse
 from planning.hand.model import HandPOMDP, goal_region
 from planning.hand.solution import HandSolution
+from planning.lattice.lattice import ConfigurationLattice
+from planning.lattice.planners import lattice_point
 
 #: Where the lattice's IK table is kept by default (relative to the working directory).
 DEFAULT_LATTICE_CACHE = Path("out/cache")
@@ -194,12 +196,23 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
     summary = summarise_episode(settings, solution, arrays, decisions,
                                 goal_region(world, model.spec), watch.stop, wall_s, refused)
     if parts.lattice is not None:
-        stats = parts.lattice.stats()
-        summary["lattice"] = {"points": stats.points, "edges": stats.edges,
-                              "edges_evaluated": stats.edges_evaluated,
-                              "edge_fraction_evaluated": stats.edge_fraction,
-                              "edges_feasible": stats.edges_feasible}
+        summary["lattice"] = lattice_summary(parts.lattice, decisions)
     return Episode(summary, arrays, _snapshots(decisions, arrays), html)
+
+
+def lattice_summary(lattice: ConfigurationLattice, decisions: tuple[Decision, ...]) -> dict:
+    """How much of the lattice the episode evaluated (thesis Fig. 7.1), and the clearance
+    (m, Drake's signed distance) of each executed edge: how close the arm passed to the
+    clutter, the table or itself."""
+    stats = lattice.stats()
+    clearance = [lattice.edge(lattice_point(lattice, palm_pose=d.palm_pose), d.action)
+                 .clearance_m for d in decisions if d.action >= 0]
+    return {"points": stats.points, "edges": stats.edges,
+            "edges_evaluated": stats.edges_evaluated,
+            "edge_fraction_evaluated": stats.edge_fraction,
+            "edges_feasible": stats.edges_feasible,
+            "executed_clearance_m": clearance,
+            "executed_clearance_min_m": min(clearance) if clearance else None}
 
 
 def _snapshots(decisions: tuple[Decision, ...],

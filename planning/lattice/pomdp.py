@@ -95,8 +95,8 @@ class LatticePOMDP:
         model: the discrete hand-relative POMDP (cells, Rel-QMDP, the continuous world).
         lattice: the scene's configuration lattice.
         contact: the scene's un-modelled contact check.
-        inner: ``"discrete"`` or ``"continuous"``; ``continuous_inner`` replaces the
-            continuous model built from ``model`` and ``initial``.
+        inner: ``"discrete"`` (the tabular Rel-POMDP) or ``"continuous"`` (the planar
+            model, :class:`~planning.hand.generative.ContinuousHandGenerative`).
         initial: the continuous initial belief (for ``sample_initial`` and the continuous
             inner model).
         upper_values: (S,) an upper bound of Rel-POMDP's value at each cell (default:

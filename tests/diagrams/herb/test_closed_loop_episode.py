@@ -130,3 +130,27 @@ def test_a_bottle_is_rotationally_symmetric():
 
     assert ObjectSpec.load("bottle").rotationally_symmetric
     assert not ObjectSpec.load("small_box").rotationally_symmetric
+
+
+def test_a_lat_despot_episode_runs_the_lattice_edges_it_planned(small_hand_solution, meshcat,
+                                                                 tmp_path):
+    solution, _, _ = small_hand_solution
+    settings = EpisodeSettings(object_name="small_box", planner="lat-despot",
+                               lat_despot_trials=3, estimator="cpf", particles=60, horizon=2,
+                               belief_mean=(0.20, 0.0, 0.0), seed=4)
+    episode = run_episode(settings, solution, meshcat=meshcat, progress=False,
+                          filter=estimator_filter("cpf", solution.model.world),
+                          cache_dir=tmp_path)
+    s = episode.summary
+    assert s["steps"] >= 1 and s["infeasible_actions"] == 0
+    lattice = s["lattice"]
+    assert 0 < lattice["edges_evaluated"] <= lattice["edges"]
+    assert len(lattice["executed_clearance_m"]) == s["steps"]
+    assert lattice["executed_clearance_min_m"] > 0  # Drake's signed distance, in free space
+    vectors = solution.model.spec.action_vectors()
+    index = {name: i for i, name in enumerate(solution.model.pomdp.actions)}
+    commanded = sum(vectors[index[a]] for a in s["actions"])
+    palm = episode.trace["palm"]
+    np.testing.assert_allclose((palm[-1] - palm[0])[:2], commanded[:2], atol=2e-3)
+    assert meshcat.HasPath("/lattice/feasible/0") and meshcat.HasPath("/lattice/chosen/0")
+    assert list((tmp_path / "lattice").glob("*.npz"))  # the IK table was cached
