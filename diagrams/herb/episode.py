@@ -205,8 +205,8 @@ def lattice_summary(lattice: ConfigurationLattice, decisions: tuple[Decision, ..
     (m, Drake's signed distance) of each executed edge: how close the arm passed to the
     clutter, the table or itself."""
     stats = lattice.stats()
-    clearance = [lattice.edge(lattice_point(lattice, palm_pose=d.palm_pose), d.action)
-                 .clearance_m for d in decisions if d.action >= 0]
+    clearance = [lattice.clearance(lattice_point(lattice, palm_pose=d.palm_pose), d.action)
+                 for d in decisions if d.action >= 0]
     return {"points": stats.points, "edges": stats.edges,
             "edges_evaluated": stats.edges_evaluated,
             "edge_fraction_evaluated": stats.edge_fraction,

@@ -56,8 +56,6 @@ class Edge:
         q: (N, 7) the joint path (rad), start to end (the interpolated configurations);
             empty when an end has no configuration.
         poses: (N, 4) the palm's planar pose (x m, y m, theta rad) and height (m) at each.
-        clearance_m: the smallest robot signed distance along the path (m; capped at
-            0.1 m; negative: penetration); NaN when the path was not built.
         reason: why it is infeasible ('' when feasible).
     """
 
@@ -67,7 +65,6 @@ class Edge:
     feasible: bool
     q: np.ndarray
     poses: np.ndarray
-    clearance_m: float
     reason: str = ""
 
 
@@ -133,6 +130,7 @@ class ConfigurationLattice:
         self.status = np.full((size, actions), UNKNOWN, dtype=np.int8)
         self._point_free = np.full(size, UNKNOWN, dtype=np.int8)
         self._edges: dict[tuple[int, int], Edge] = {}
+        self._clearances: dict[tuple[int, int], float] = {}
         #: (P, A) bool: the edges asked for since :meth:`reset_asked` (what one episode
         #: or decision needed, whatever was evaluated before it).
         self.asked = np.zeros((size, actions), dtype=bool)
@@ -174,6 +172,18 @@ class ConfigurationLattice:
             self._evaluate([(int(point), int(action))])
         return self._edges[(int(point), int(action))]
 
+    def clearance(self, point: int, action: int) -> float:
+        """The smallest signed distance (m) between a robot geometry and anything else
+        along the edge's joint path (capped at 0.1 m; negative: penetration; NaN when no
+        path was built: an end without a configuration or colliding), from Drake's
+        signed-distance query; kept once asked."""
+        key = (int(point), int(action))
+        if key not in self._clearances:
+            q = self.edge(point, action).q
+            self._clearances[key] = (min(self._clearance(qk) for qk in q) if len(q)
+                                     else float("nan"))
+        return self._clearances[key]
+
     def evaluated_edges(self) -> list[Edge]:
         """Every edge evaluated so far."""
         return list(self._edges.values())
@@ -210,7 +220,7 @@ class ConfigurationLattice:
             reason = self._end_reason(point, target)
             if reason:
                 self._store(Edge(point, action, target, False, np.zeros((0, 7)),
-                                 np.zeros((0, 4)), float("nan"), reason))
+                                 np.zeros((0, 4)), reason))
                 continue
             q0, q1 = self.table.q[point], self.table.q[target]
             count = max(1, int(np.ceil(np.max(np.abs(q1 - q0)) / self.joint_step_rad)))
@@ -224,11 +234,10 @@ class ConfigurationLattice:
         collides = {(p, a) for (p, a, _), ok in zip(checks, free, strict=True) if not ok}
         for (point, action), (target, q) in paths.items():
             poses = np.array([self.kinematics.palm_pose(qk) for qk in q])
-            clearance = min(self._clearance(qk) for qk in q)
             reason = self._path_reason(point, target, poses)
             if not reason and (point, action) in collides:
                 reason = self._collision_reason(q)
-            self._store(Edge(point, action, target, not reason, q, poses, clearance, reason))
+            self._store(Edge(point, action, target, not reason, q, poses, reason))
 
     def _store(self, edge: Edge) -> None:
         self._edges[(edge.point, edge.action)] = edge
@@ -264,10 +273,9 @@ class ConfigurationLattice:
         return ""
 
     def _clearance(self, q_arm: np.ndarray) -> float:
-        clearance = self.checker.CalcRobotClearance(self.full_positions(q_arm),
-                                                    CLEARANCE_INFLUENCE_M)
-        distances = clearance.distances()
-        return float(distances.min()) if len(distances) else CLEARANCE_INFLUENCE_M
+        """The scene's smallest robot signed distance at ``q_arm`` (m; Drake's QueryObject,
+        pairs within 10 cm)."""
+        return self.kinematics.min_distance(q_arm, CLEARANCE_INFLUENCE_M)
 
     def _collision_reason(self, q: np.ndarray) -> str:
         """Names what the deepest configuration of ``q`` (N, 7) hits."""

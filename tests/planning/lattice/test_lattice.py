@@ -71,7 +71,11 @@ def test_an_edge_into_the_wall_is_infeasible_and_one_away_from_it_feasible(
     # the palm follows the template's straight motion, within the tolerance
     assert np.abs(back.poses[:, 1] - back.poses[0, 1]).max() < lattice.path_tolerance_m
     # clearance from Drake's signed distance: positive in free space, the wall closest
-    assert 0 < back.clearance_m <= 0.1
+    # the signed-distance clearance agrees with the collision checker's verdicts
+    assert lattice.checker.GetLargestPadding() < lattice.clearance(start, BACK) <= 0.1
+    into_wall = small_table.q[lattice.neighbours[start, RIGHT]]  # its end collides
+    assert lattice.kinematics.min_distance(into_wall) < lattice.checker.GetLargestPadding()
+    assert np.isnan(lattice.clearance(start, RIGHT))  # no path was built
     edge_off = lattice.edge(int(lattice.spec.point(-2, 0)), BACK)
     assert not edge_off.feasible and "leaves the lattice" in edge_off.reason
 
