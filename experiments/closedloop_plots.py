@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-COLORS = {"qmdp": "tab:orange", "pomdp": "tab:blue"}
+COLORS = {"qmdp": "tab:orange", "pomdp": "tab:blue", "lat-despot": "tab:red"}
 
 
 def plot_closedloop(summary: dict, path: Path) -> None:
@@ -30,7 +30,8 @@ def plot_closedloop(summary: dict, path: Path) -> None:
     ax.set_ylim(0, 1.05)
     ax.set_ylabel("success rate (95 % Wilson interval)")
     ax.set_title("success")
-    ax.legend(loc="lower right", fontsize=8)
+    if ax.get_legend_handles_labels()[1]:  # the thesis has figures only for its policies
+        ax.legend(loc="lower right", fontsize=8)
 
     ax = axes[1]
     width = 0.8 / max(1, len(policies))
