@@ -203,7 +203,7 @@ def resolve_latdespot(args: argparse.Namespace) -> LatDespotStudyConfig:
 
 
 def _latdespot(args: argparse.Namespace) -> int:
-    from experiments.latdespot_study import run_study
+    from experiments.latdespot_run import run_study
     from models.herb.scene import SceneSpec
     from planning.hand.discretization import HandProblemSpec
 

@@ -28,16 +28,14 @@ budget is a trial count (``despot_trials``) so that results do not depend on the
 machine's speed, with a wall-clock cap (``despot_seconds``).
 
 Parts ``scenes`` and ``bound`` (the Lat-POMDP experiments of sec. 7.3.4-7.3.5):
-:mod:`experiments.latdespot_scenes`; ``all`` runs the three.
+:mod:`experiments.latdespot_scenes`; :mod:`experiments.latdespot_run` runs any part, or
+``all``.
 """
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass
-from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -60,9 +58,6 @@ from planning.pomdp.online import DespotPlanner
 from planning.pomdp.point_based import PointBasedSolver
 from planning.pomdp.progress import SolverProgressBar
 from planning.pomdp.qmdp import solve_mdp
-
-if TYPE_CHECKING:
-    from experiments.latdespot_scenes import SceneSettings
 
 PARTS = ("rel", "scenes", "bound", "all")
 CONTINUOUS_ROLLOUTS = ("discrete", "continuous")
@@ -229,35 +224,3 @@ def evaluate_rel(settings: RelSettings, model: HandPOMDP, belief: GaussianBelief
     rel["rel-despot-continuous"] = summarise_episodes(
         run_continuous_episodes(settings, build_rel_problem, workers=workers))
     return rel
-
-
-def run_study(part: str, settings: RelSettings, scenes: SceneSettings, out: Path, *,
-              workers: int = 1) -> dict:
-    """Part ``rel``, ``scenes``, ``bound`` or ``all`` (see the module docstrings of this
-    module and :mod:`experiments.latdespot_scenes`): writes ``summary.json`` (``rel``,
-    ``scenes``, ``bound`` as run) and the PNGs; ``workers`` processes run the episodes that
-    plan online (the results do not depend on it)."""
-    from experiments.latdespot_plots import plot_rel, plot_scenes
-    from experiments.latdespot_scenes import Solved, bound_check, run_scenes, settings_dict
-
-    out.mkdir(parents=True, exist_ok=True)
-    model, belief, initial = build_rel_problem(settings)
-    policies, costs, corner = solve_rel(settings, model, initial)
-    summary = {"part": part, "settings": settings_dict(settings, scenes),
-               "model": {"states": len(model.pomdp.states),
-                         "actions": list(model.pomdp.actions),
-                         "observations": len(model.pomdp.observations), **costs}}
-    if part in ("rel", "bound", "all"):
-        summary["rel"] = evaluate_rel(settings, model, belief, initial, policies,
-                                      workers=workers, continuous=part != "bound")
-    if part in ("scenes", "bound", "all"):
-        solved = Solved(policies["rel-sarsop"], corner)
-        summary["scenes"] = run_scenes(settings, scenes, solved, out, workers=workers)
-    if part in ("bound", "all"):
-        summary["bound"] = bound_check(summary["rel"], summary["scenes"])
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    if part in ("rel", "all"):
-        plot_rel(summary, out)
-    if "scenes" in summary:
-        plot_scenes(summary, out)
-    return summary
