@@ -39,7 +39,9 @@ class EpisodeSettings:
             along the lattice edges it checked.
         policy: post-contact policy of the ``hand`` planner, ``qmdp`` or ``pomdp``.
         lat_despot_trials: DESPOT trials per Lat-DESPOT decision (None: the wall-clock
-            cap alone); lat_despot_seconds: its wall-clock cap per decision (s).
+            cap alone); lat_despot_seconds: its wall-clock cap per decision (s). DESPOT's
+            other settings are its defaults (K = 500 scenarios, depth 90, as the JAIR
+            paper; the ch. 7 study uses K = 100).
         estimator: ``mpf`` (manifold particle filter, analytic manifold) or ``cpf``.
         planner_belief: what the policy acts on: ``estimator`` (the estimator system's
             belief, discretised after contact; :class:`~planning.hand.planner.HandPlanner`)
