@@ -14,6 +14,7 @@ from cmanip.config import RunConfig, load_config, overridden, with_object, write
 from cmanip.options import setting_option, subcommand, wait_for_meshcat
 from diagrams.herb.settings import (
     ESTIMATORS,
+    LAT_DESPOT_MODELS,
     PLANNER_BELIEFS,
     PLANNERS,
     POLICIES,
@@ -35,6 +36,9 @@ EPISODE_OPTIONS = (
      "DESPOT trials per Lat-DESPOT decision (0: the wall-clock cap alone)", {"type": int}),
     ("--lat-despot-seconds", EPISODE.lat_despot_seconds,
      "Lat-DESPOT's wall-clock cap per decision (s)", {"type": float}),
+    ("--lat-despot-model", EPISODE.lat_despot_model,
+     "what Lat-DESPOT plans on: the discretised hand-relative model (the thesis) or the "
+     "continuous pushing model", {"choices": LAT_DESPOT_MODELS}),
     ("--estimator", EPISODE.estimator,
      "the estimator's filter: manifold (MPF) or conventional (CPF)", {"choices": ESTIMATORS}),
     ("--planner-belief", EPISODE.planner_belief,
@@ -82,7 +86,8 @@ def override_episode(episode: EpisodeSettings, args: argparse.Namespace) -> Epis
         "scene": "scene", "object": "object_name", "policy": "policy",
         "estimator": "estimator", "planner_belief": "planner_belief",
         "on_infeasible": "on_infeasible", "horizon": "horizon", "particles": "particles",
-        "planner": "planner", "lat_despot_seconds": "lat_despot_seconds"})
+        "planner": "planner", "lat_despot_seconds": "lat_despot_seconds",
+        "lat_despot_model": "lat_despot_model"})
     given = vars(args)
     if "lat_despot_trials" in given:
         episode = replace(episode, lat_despot_trials=given["lat_despot_trials"] or None)

@@ -120,7 +120,8 @@ def controller_parts(settings: EpisodeSettings, solution: HandSolution, scene: S
         except ValueError as err:
             raise InfeasibleStart(str(err)) from err
         lattice = ConfigurationLattice(scene, table, model.spec.action_vectors())
-        pomdp = LatticePOMDP(model, lattice, UnmodelledContact(scene), inner="discrete")
+        pomdp = LatticePOMDP(model, lattice, UnmodelledContact(scene),
+                             inner=settings.lat_despot_model)
         planner = LatDespotPlanner(pomdp, DespotSettings(
             max_trials=settings.lat_despot_trials, seconds=settings.lat_despot_seconds))
         return ControllerParts(planner, LatticeMotion(lattice), table.q[spec.start_point],

@@ -15,6 +15,7 @@ ESTIMATORS = ("mpf", "cpf")
 PLANNER_BELIEFS = ("estimator", "thesis")
 POLICIES = ("qmdp", "pomdp")
 PLANNERS = ("hand", "lat-despot")
+LAT_DESPOT_MODELS = ("discrete", "continuous")
 #: The thesis' three initial beliefs (sec. 6.5): means 35 cm ahead at lateral offsets 12,
 #: 0 and 6 cm; its figure shows the first to the hand's right (-y).
 THESIS_BELIEF_MEANS = ((0.35, -0.12, 0.0), (0.35, 0.0, 0.0), (0.35, 0.06, 0.0))
@@ -42,6 +43,11 @@ class EpisodeSettings:
             cap alone); lat_despot_seconds: its wall-clock cap per decision (s). DESPOT's
             other settings are its defaults (K = 500 scenarios, depth 90, as the JAIR
             paper; the ch. 7 study uses K = 100).
+        lat_despot_model: what Lat-DESPOT plans on: ``discrete`` (the thesis: the
+            discretised hand-relative model, the particles mapped to its cells) or
+            ``continuous`` (beyond the thesis: the planar pushing model itself, the
+            particles as they are, with the same bounds; as part ``rel``'s
+            ``rel-despot-continuous``).
         estimator: ``mpf`` (manifold particle filter, analytic manifold) or ``cpf``.
         planner_belief: what the policy acts on: ``estimator`` (the estimator system's
             belief, discretised after contact; :class:`~planning.hand.planner.HandPlanner`)
@@ -76,6 +82,7 @@ class EpisodeSettings:
     policy: str = "pomdp"
     lat_despot_trials: int | None = 100
     lat_despot_seconds: float = 2.0
+    lat_despot_model: str = "discrete"
     estimator: str = "mpf"
     planner_belief: str = "estimator"
     belief_mean: tuple[float, float, float] = THESIS_BELIEF_MEANS[1]
@@ -96,6 +103,9 @@ class EpisodeSettings:
         if self.planner not in PLANNERS:
             raise ValueError(f"planner must be one of {PLANNERS}, got {self.planner!r}")
         check_budget(self.lat_despot_trials, self.lat_despot_seconds)
+        if self.lat_despot_model not in LAT_DESPOT_MODELS:
+            raise ValueError(f"lat_despot_model must be one of {LAT_DESPOT_MODELS}, got "
+                             f"{self.lat_despot_model!r}")
         if self.policy not in POLICIES:
             raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
         if self.estimator not in ESTIMATORS:

@@ -76,6 +76,10 @@ def test_settings_reject_bad_values():
         EpisodeSettings(policy="greedy")
     with pytest.raises(ValueError, match="estimator"):
         EpisodeSettings(estimator="ukf")
+    with pytest.raises(ValueError, match="lat_despot_model"):
+        EpisodeSettings(lat_despot_model="exact")
+    with pytest.raises(ValueError, match="lat_despot_trials"):
+        EpisodeSettings(lat_despot_trials=0)
 
 
 def test_drawer_draws_particles_mean_goal_and_sensors(meshcat):

@@ -116,3 +116,22 @@ def test_theorem_7_1_lat_despot_never_chooses_an_infeasible_action(lat, ahead):
         assert result.stats["lower"] > floor
         assert lat.lattice.feasible([start], [result.action])[0]
         assert result.ranking[-1] == RIGHT  # infeasible: ranked last
+
+
+def test_lat_despot_plans_on_the_continuous_model_from_pose_particles(lat, ahead):
+    """The estimator's particles as they are (poses), on the planar pushing model: the
+    same bounds, and still never the infeasible move."""
+    from estimation.particles.belief import ParticleBelief
+
+    continuous = LatticePOMDP(lat.model, lat.lattice, lat.contact, inner="continuous")
+    planner = LatDespotPlanner(continuous, DespotSettings(scenarios=20, depth=20,
+                                                          max_trials=5, seconds=10.0))
+    rng = np.random.default_rng(5)
+    poses = GaussianBelief((0.16, -0.04, 0.0), (0.005, 0.01, np.pi)).sample(
+        lat.model.world, 100, rng=rng)
+    start = lat.lattice.start_point
+    result = planner.plan(ParticleBelief.uniform(poses), rng=rng,
+                          palm_pose=lat.lattice.poses[start])
+    assert result.stats["trials"] == 5 and result.action != RIGHT
+    rows = continuous.from_poses(start, poses[:3])
+    np.testing.assert_array_equal(rows[:, 1:], poses[:3])  # poses, not cells
