@@ -73,7 +73,6 @@ from planning.pomdp.despot import DespotSettings
 from planning.pomdp.generative import TabularGenerative
 from planning.pomdp.online import DespotPlanner
 from planning.pomdp.point_based import AlphaVectorPolicy
-from planning.pomdp.qmdp import solve_mdp
 from planning.pomdp.tabular import belief_update
 
 SCENES = ("empty", "right_obstacles", "left_obstacles", "cul_de_sac")
@@ -176,7 +175,7 @@ class SceneEpisodes:
                                       seconds=scenes.lat_despot_seconds)
         pb = LatticePOMDP(model, self.lattice, contact, inner="discrete", initial=belief,
                           upper_values=solved.corner, rollout_policy=solved.sarsop)
-        q = qmdp_vectors(solve_mdp(model.pomdp), model.pomdp.actions)
+        q = qmdp_vectors(self.models["discrete"].tabular.q_values, model.pomdp.actions)
         rel_despot = DespotPlanner(TabularGenerative(model.pomdp, default_policy="qmdp"),
                                    DespotSettings(scenarios=rel.despot_scenarios,
                                                   depth=rel.despot_depth,
@@ -383,11 +382,24 @@ def run_scenes(rel: RelSettings, scenes: SceneSettings, solved: Solved, out: Pat
     return result
 
 
+def lattice_figure_data(lattice: ConfigurationLattice, asked: np.ndarray,
+                        status: np.ndarray) -> dict[str, np.ndarray]:
+    """The data of the lattice figure (thesis Fig. 7.1,
+    :func:`experiments.latdespot_plots.plot_lattice`): every point's world pose and
+    whether it has a configuration, the ``asked`` (P, A) edges and their ``status``
+    (P, A) answers, the obstacles' footprints and the hand's start."""
+    footprints = [pose_points(o.pose.as_array()[None], o.spec.footprint())[0]
+                  for o in lattice.scene.obstacles]
+    return {"poses": lattice.poses, "neighbours": lattice.neighbours,
+            "reachable": lattice.table.reachable, "asked": asked, "status": status,
+            "obstacles": np.concatenate(footprints) if footprints else np.zeros((0, 2)),
+            "obstacle_sizes": np.array([len(f) for f in footprints], dtype=int),
+            "start": np.asarray(lattice.spec.start)}
+
+
 def save_lattice(path: Path, scene_name: str, rel: RelSettings, scenes: SceneSettings,
                  episode: LatEpisode) -> None:
-    """The data of the lattice figure (thesis Fig. 7.1): every point's world pose and
-    whether it has a configuration, the edges ``episode`` asked for and their answers, the
-    obstacles' footprints and the hand's start."""
+    """``path`` (.npz): the lattice figure's data of ``episode`` (its asked edges)."""
     from planning.hand.discretization import HandProblemSpec
 
     scene = SceneSpec.load(scene_name, object_override=rel.object_name)
@@ -395,15 +407,8 @@ def save_lattice(path: Path, scene_name: str, rel: RelSettings, scenes: SceneSet
     spec = lattice_spec(scene, problem.step_m, scenes)
     cache = None if scenes.cache_dir is None else Path(scenes.cache_dir)
     table = load_ik_table(scene, spec, cache_dir=cache, progress=False)
-    footprints = [pose_points(o.pose.as_array()[None], o.spec.footprint())[0]
-                  for o in scene.obstacles]
-    np.savez_compressed(path, poses=spec.poses(np.arange(spec.size)),
-                        neighbours=spec.neighbours(problem.action_vectors()),
-                        reachable=table.reachable, asked=episode.asked,
-                        status=episode.status,
-                        obstacles=np.concatenate(footprints) if footprints else np.zeros((0, 2)),
-                        obstacle_sizes=np.array([len(f) for f in footprints], dtype=int),
-                        start=np.asarray(spec.start))
+    lattice = ConfigurationLattice(scene, table, problem.action_vectors())
+    np.savez_compressed(path, **lattice_figure_data(lattice, episode.asked, episode.status))
 
 
 def bound_check(rel_values: dict, scenes: dict) -> dict:

@@ -19,7 +19,7 @@ from functools import cached_property
 
 import numpy as np
 
-from models.se2 import compose
+from models.se2 import compose, inverse
 
 
 @dataclass(frozen=True)
@@ -92,6 +92,14 @@ class LatticeSpec:
         r = self.resolution_m
         local = np.stack([ix * r, iy * r, np.zeros(np.shape(ix))], axis=-1)
         return compose(np.asarray(self.start, dtype=float), local)
+
+    def nearest_point(self, pose: np.ndarray) -> tuple[int, float]:
+        """The lattice point nearest the planar world pose (3,) (-1 when that is off the
+        lattice), and the pose's distance (m) from it."""
+        local = compose(inverse(np.asarray(self.start, dtype=float)), np.asarray(pose)[:3])
+        steps = np.round(local[:2] / self.resolution_m)
+        distance = float(np.hypot(*(local[:2] - steps * self.resolution_m)))
+        return int(self.point(int(steps[0]), int(steps[1]))), distance
 
     def template_steps(self, action_vectors: np.ndarray) -> np.ndarray:
         """(A, 2) integer lattice steps of hand-frame action vectors (A, 3) (m, m, rad).

@@ -57,11 +57,13 @@ def lattice_point(lattice: ConfigurationLattice, *, point: int | None = None,
     if palm_pose is None:
         raise ValueError("a lattice planner needs the robot's lattice point (point=) or the "
                          "palm's pose (palm_pose=)")
-    distance = np.linalg.norm(lattice.poses[:, :2] - np.asarray(palm_pose)[:2], axis=1)
-    nearest = int(np.argmin(distance))
-    if distance[nearest] > ON_LATTICE_M:
+    nearest, distance = lattice.spec.nearest_point(palm_pose)
+    if nearest < 0:
+        raise ValueError(f"the palm at {np.round(palm_pose[:2], 4).tolist()} m is off the "
+                         "lattice")
+    if distance > ON_LATTICE_M:
         raise ValueError(f"the palm at {np.round(palm_pose[:2], 4).tolist()} m is "
-                         f"{distance[nearest] * 1e3:.1f} mm from the nearest lattice point")
+                         f"{distance * 1e3:.1f} mm from the nearest lattice point")
     return nearest
 
 
