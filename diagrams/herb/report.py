@@ -53,7 +53,10 @@ def plot_belief(episode: Episode, path: Path) -> None:
     ax_err.set_ylabel("error")
     ax_err.set_ylim(0, top)
     outcome = "success" if summary["success"] else "failure"
-    ax_err.set_title(f"{summary['settings']['policy'].upper()} / "
+    settings = summary["settings"]
+    planner = settings["policy"] if settings.get("planner", "hand") == "hand" \
+        else settings["planner"]
+    ax_err.set_title(f"{planner.upper()} / "
                      f"{summary['settings']['estimator'].upper()}: {outcome} "
                      f"({summary['stop_reason']}, {summary['steps']} steps)")
     ax_err.legend(loc="upper left", fontsize=8, bbox_to_anchor=(0.0, 0.93))
