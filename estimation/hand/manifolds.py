@@ -102,7 +102,8 @@ class AnalyticManifold:
     def __len__(self) -> int:
         return len(self.theta)
 
-    def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator) -> np.ndarray:
+    def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator,
+               predicted=None) -> np.ndarray:
         """Draw ``n`` states (n, 3) from the dual proposal for ``observation``."""
         index = self.sampler.draw(observation, n, rng)
         t = rng.random(n)[:, None]
@@ -149,7 +150,8 @@ class RejectionSampledManifold:
     def __len__(self) -> int:
         return len(self.states)
 
-    def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator) -> np.ndarray:
+    def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator,
+               predicted=None) -> np.ndarray:
         """Draw ``n`` states (n, 3) from the stored set in proportion to p(o | s)."""
         return self.states[self.sampler.draw(observation, n, rng)]
 
@@ -194,6 +196,7 @@ class TrajectoryRolloutManifold:
     def __len__(self) -> int:
         return len(self.states)
 
-    def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator) -> np.ndarray:
+    def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator,
+               predicted=None) -> np.ndarray:
         """Draw ``n`` states (n, 3) in proportion to p(o | s) / p~(s)."""
         return self.states[self.sampler.draw(observation, n, rng)]

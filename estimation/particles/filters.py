@@ -25,9 +25,13 @@ class ContactManifold(Protocol):
     """The observable contact manifold of an observation (analytic, rejection-sampled,
     rollout, implicit): the MPF's dual proposal."""
 
-    def sample(self, observation: np.ndarray, n: int, *,
-               rng: np.random.Generator) -> np.ndarray:
-        """(n, d) states on the contact manifold of ``observation``."""
+    def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator,
+               predicted: ParticleBelief | None = None) -> np.ndarray:
+        """(n, d) states on the contact manifold of ``observation`` (fewer, even none,
+        when the representation fails to find them). ``predicted`` is the prior b+ (the
+        propagated particles with their prior weights), which a projection seeds from
+        (thesis sec. 5.2: particle and ball projection); other representations ignore it.
+        """
 
 
 @dataclass(frozen=True)
@@ -121,11 +125,14 @@ class ManifoldParticleFilter:
         parts_states, parts_log_w = [], []
         failed = dual_used = False
         if contact:
-            duals = self.manifold.sample(observation, self.dual_particles, rng=rng)
+            duals = self.manifold.sample(
+                observation, self.dual_particles, rng=rng,
+                predicted=ParticleBelief(predicted, belief.log_weights, belief.angular))
             dual_ll = self.world.log_likelihood(observation, duals, action)
             failed = bool(np.all(dual_ll < np.log(SAMPLING_FAILURE_LIKELIHOOD)))
             if not failed:
-                dual = _normalised(log_density(duals, predicted, prior_w))
+                dual = _normalised(log_density(duals, predicted, prior_w,
+                                               angular=belief.angular))
                 if dual is not None:
                     dual_used = True
                     parts_states.append(duals)

@@ -1,4 +1,4 @@
-"""Gaussian kernel density estimates over planar poses, with Silverman's bandwidth.
+"""Gaussian kernel density estimates over particle states, with Silverman's bandwidth.
 
 The MPF weights each dual particle by the density of the predicted belief at it (thesis
 sec. 4.2.3: "Gaussian kernel [...] bandwidth matrix using a multivariate generalization of
@@ -19,43 +19,61 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-MIN_BANDWIDTH = np.array([1e-4, 1e-4, 1e-3])
-"""Floor on each bandwidth (m, m, rad), so identical particles still give a density."""
+MIN_LINEAR_BANDWIDTH = 1e-4
+"""Floor on a linear column's bandwidth (m), so identical particles still give a density."""
+
+MIN_ANGULAR_BANDWIDTH = 1e-3
+"""Floor on an angular column's bandwidth (rad)."""
 
 
-def silverman_bandwidth(states: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """(3,) diagonal bandwidths (m, m, rad) for weighted planar poses (N, 3)."""
+def _angular_mask(d: int, angular: tuple[int, ...]) -> np.ndarray:
+    mask = np.zeros(d, dtype=bool)
+    mask[list(angular)] = True
+    return mask
+
+
+def silverman_bandwidth(states: np.ndarray, weights: np.ndarray,
+                        angular: tuple[int, ...] = (2,)) -> np.ndarray:
+    """(d,) diagonal bandwidths for weighted states (N, d): per column its weighted
+    standard deviation (circular for the ``angular`` columns) times
+    ``(4 / ((d + 2) n_eff)) ** (1 / (d + 4))``; default: planar poses (m, m, rad)."""
     w = weights / weights.sum()
     n_eff = 1.0 / np.sum(w * w)
     d = states.shape[1]
-    mean_xy = w @ states[:, :2]
-    std_xy = np.sqrt(w @ (states[:, :2] - mean_xy) ** 2)
-    resultant = np.hypot(w @ np.cos(states[:, 2]), w @ np.sin(states[:, 2]))
-    std_theta = np.sqrt(-2.0 * np.log(np.clip(resultant, 1e-12, 1.0)))
-    sigma = np.array([std_xy[0], std_xy[1], std_theta])
+    mask = _angular_mask(d, angular)
+    mean = w @ states
+    sigma = np.sqrt(w @ (states - mean) ** 2)
+    resultant = np.hypot(w @ np.cos(states[:, mask]), w @ np.sin(states[:, mask]))
+    sigma[mask] = np.sqrt(-2.0 * np.log(np.clip(resultant, 1e-12, 1.0)))
     factor = (4.0 / ((d + 2) * n_eff)) ** (1.0 / (d + 4))
-    return np.maximum(sigma * factor, MIN_BANDWIDTH)
+    floor = np.where(mask, MIN_ANGULAR_BANDWIDTH, MIN_LINEAR_BANDWIDTH)
+    return np.maximum(sigma * factor, floor)
 
 
 def log_density(queries: np.ndarray, states: np.ndarray, weights: np.ndarray,
-                bandwidth: np.ndarray | None = None) -> np.ndarray:
+                bandwidth: np.ndarray | None = None, angular: tuple[int, ...] = (2,)
+                ) -> np.ndarray:
     """log of sum_i w_i N(q - s_i; 0, diag(h)^2) at each query.
 
     Args:
-        queries: (Q, 3) poses; states: (N, 3) kernel centres; weights: (N,) non-negative.
-        bandwidth: (3,) or Silverman's rule when None.
+        queries: (Q, d) states; states: (N, d) kernel centres; weights: (N,) non-negative.
+        bandwidth: (d,) or Silverman's rule when None.
+        angular: the columns whose differences are wrapped (default: a planar pose's
+            orientation).
 
     Returns:
-        (Q,) log densities (per m^2 rad).
+        (Q,) log densities (per unit volume of the state space, e.g. per m^2 rad).
     """
     w = weights / weights.sum()
-    h = silverman_bandwidth(states, w) if bandwidth is None else np.asarray(bandwidth, float)
-    norm = -np.log(h).sum() - 1.5 * np.log(2 * np.pi)
+    d = states.shape[1]
+    h = (silverman_bandwidth(states, w, angular) if bandwidth is None
+         else np.asarray(bandwidth, float))
+    norm = -np.log(h).sum() - 0.5 * d * np.log(2 * np.pi)
     log_w = np.log(np.maximum(w, 1e-300))
     queries = np.ascontiguousarray(queries, dtype=float)
     states = np.ascontiguousarray(states, dtype=float)
     kernel = _sums_parallel if len(states) >= PARALLEL_MIN_CENTRES else _sums_serial
-    return kernel(queries, states, log_w, h) + norm
+    return kernel(queries, states, log_w, h, _angular_mask(d, angular)) + norm
 
 
 PARALLEL_MIN_CENTRES = 4096
@@ -65,20 +83,22 @@ NEGLIGIBLE_LOG_TERM = 40.0
 """Terms more than this below a query's largest (a factor e^-40) are left out of its sum."""
 
 
-def _log_kernel_sums(queries, states, log_w, h):
-    """Per query, log sum_i exp(log_w_i - |(q - s_i) / h|^2 / 2), angle wrapped."""
+def _log_kernel_sums(queries, states, log_w, h, angular):
+    """Per query, log sum_i exp(log_w_i - |(q - s_i) / h|^2 / 2), angular columns wrapped."""
     two_pi = 2.0 * np.pi
     out = np.empty(queries.shape[0])
     terms = np.empty((queries.shape[0], states.shape[0]))
     for q in prange(queries.shape[0]):
         top = -np.inf
         for i in range(states.shape[0]):
-            dx = (queries[q, 0] - states[i, 0]) / h[0]
-            dy = (queries[q, 1] - states[i, 1]) / h[1]
-            a = queries[q, 2] - states[i, 2]
-            a = a - two_pi * np.floor((a + np.pi) / two_pi)
-            dt = a / h[2]
-            terms[q, i] = log_w[i] - 0.5 * (dx * dx + dy * dy + dt * dt)
+            total = 0.0
+            for j in range(states.shape[1]):
+                a = queries[q, j] - states[i, j]
+                if angular[j]:
+                    a = a - two_pi * np.floor((a + np.pi) / two_pi)
+                a = a / h[j]
+                total += a * a
+            terms[q, i] = log_w[i] - 0.5 * total
             top = max(top, terms[q, i])
         total = 0.0
         for i in range(states.shape[0]):

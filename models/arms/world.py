@@ -1,0 +1,274 @@
+"""An arm in its known static world: contact sensing, the motion model and proprioception
+(thesis sec. 3.2, 3.3 and 5.4.1), batched over K configurations.
+
+**State.** A particle is the arm's configuration q (dof,) rad, not the encoder offset:
+the contact manifold, the projection and the error the thesis plots all live in
+configuration space, and the motion model acts on configurations (an arm blocked by an
+obstacle stops where the obstacle is, whatever its encoders say). The offset
+``dq = o_q - q - eps`` is constant over an experiment (sec. 5.4.1: drawn once per trial),
+so the encoders' first reading carries all they can say about it: the initial belief is
+``q_0 = o_q,0 - dq - eps`` with ``dq ~ N(0, Sigma_dq)`` and ``eps ~ U(B(0, r_q))``. Later
+readings add nothing but noise while the arm moves as commanded, and where it does not
+(blocked by contact) the contact sensors say so; they are recorded but not weighed again,
+which would count the same offset twice.
+
+**Motion** (sec. 5.4.1): the commanded joint motion, then a frictionless projection out of
+inter-penetration: Gauss-Newton on the penetration depths of the arm's balls (each
+moves along its contact normal only), joint limits clipped, planar joints wrapped. The
+filter adds ``process_noise_radius_rad`` of uniform noise in a ball to each commanded step
+(the thesis' motion is deterministic; a particle filter needs some diffusion, and the
+authors' demo uses a 0.01 rad random walk).
+
+**Contact sensing** (sec. 3.3, eq. 5.3): sensor i is active when
+``f_i(q) = min_j F(c_ij(q)) - r_ij <= contact_tolerance_m``; each reading is flipped with
+probability ``sensor_error_rate``. The likelihood also counts each ball deeper than
+``PENETRATION_TOLERANCE_M`` inside an obstacle as one contradicted reading: such a state
+is (almost) impossible, and dual samples projected onto a contact can land there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import ndtri
+
+from models.arms.chain import BallChain
+from models.arms.environment import Environment
+from models.arms.plant import ArmModel, build_arm
+from models.arms.spec import ArmSpec
+from models.pose import wrap_angle
+
+PENETRATION_TOLERANCE_M = 0.005
+"""A ball deeper than this inside an obstacle makes a state (nearly) impossible (m)."""
+
+FREE_ITERATIONS = 20
+"""Gauss-Newton iterations of the projection out of penetration."""
+
+FREE_TOLERANCE_M = 1e-5
+"""The projection out of penetration stops when no ball is deeper than this (m)."""
+
+DAMPING = 1e-6
+"""Levenberg damping (m^2) of the projection's joint-space normal equations."""
+
+
+@dataclass(frozen=True)
+class ArmTrajectory:
+    """One simulated experiment.
+
+    Attributes:
+        q_true: (T+1, dof) true configurations (rad), from the start.
+        commanded: (T, dof) commanded joint motion per step (rad).
+        encoders: (T+1, dof) proprioceptive readings o_q = q + dq + eps (rad).
+        contacts: (T+1, S) bool contact readings (after the start, and each step).
+        offset: (dof,) the encoder offset dq (rad).
+    """
+
+    q_true: np.ndarray
+    commanded: np.ndarray
+    encoders: np.ndarray
+    contacts: np.ndarray
+    offset: np.ndarray
+
+
+class ArmWorld:
+    """The batched models the filters need (:class:`models.protocols.FilterModel`).
+
+    Args:
+        spec: the arm, its sensors, world and noise.
+        process_noise_radius_rad: the filter's per-step motion noise (rad).
+    """
+
+    def __init__(self, spec: ArmSpec, *, process_noise_radius_rad: float = 0.01):
+        if process_noise_radius_rad < 0:
+            raise ValueError("process_noise_radius_rad must be >= 0")
+        self.spec = spec
+        self.model: ArmModel = build_arm(spec)
+        self.process_noise_radius_rad = process_noise_radius_rad
+        diagram = self.model.diagram
+        self.context = diagram.CreateDefaultContext()
+        plant = diagram.plant()
+        self.plant_context = plant.GetMyMutableContextFromRoot(self.context)
+        plant.SetPositions(self.plant_context, self.model.q_default)
+        query = diagram.scene_graph().get_query_output_port().Eval(
+            diagram.scene_graph().GetMyContextFromRoot(self.context))
+        self.environment = Environment.from_scene_graph(
+            diagram.scene_graph().model_inspector(), query, self.model.environment_ids)
+        sensor_balls = [b for s in spec.sensors for b in s.balls]
+        self.balls = tuple(sensor_balls) + spec.body
+        self.chain = BallChain(plant, self.plant_context, self.model.joints, self.balls)
+        self.sensor_of_ball = np.concatenate(
+            [np.full(len(s.balls), i) for i, s in enumerate(spec.sensors)]
+            + [np.full(len(spec.body), -1)]).astype(int)
+        self.dof = spec.dof
+        self.sensor_count = len(spec.sensors)
+        self.angular = tuple(range(self.dof))
+        self.lower, self.upper = self.model.lower, self.model.upper
+
+    # -- geometry ---------------------------------------------------------------------
+
+    def ball_distances(self, q: np.ndarray, *, gradient: bool = False,
+                       balls: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Signed distance of every ball to the environment, ``F(c_j(q)) - r_j``.
+
+        Args:
+            q: (K, dof) configurations (rad).
+            balls: indices of the balls wanted (default: all B).
+
+        Returns:
+            (K, B) distances (m) and, when asked, their gradients (K, B, dof) m/rad
+            (thesis eq. 5.4: ``grad F(c)^T J_c(q)``).
+        """
+        c, J = self.chain.centers(q, jacobian=gradient, balls=balls)
+        d, g = self.environment.signed_distance(c)
+        d = d - (self.chain.radii if balls is None else self.chain.radii[balls])[None]
+        if not gradient:
+            return d, None
+        return d, np.einsum("kbi,kbid->kbd", g, J)
+
+    def sensor_distances(self, q: np.ndarray, *, gradient: bool = False,
+                         sensors: np.ndarray | None = None
+                         ) -> tuple[np.ndarray, np.ndarray | None]:
+        """f_i(q) of each sensor (thesis eq. 5.3: its nearest ball) and, when asked, the
+        gradient (eq. 5.4: the nearest ball's).
+
+        Args:
+            q: (K, dof) configurations (rad).
+            sensors: sorted indices of the sensors wanted (default: all S); only their
+                balls are evaluated.
+
+        Returns:
+            (K, S') distances (m) and (K, S', dof) gradients (m/rad) or None.
+        """
+        q = np.atleast_2d(q)
+        sensors = np.arange(self.sensor_count) if sensors is None else np.asarray(sensors)
+        balls = np.flatnonzero(np.isin(self.sensor_of_ball, sensors))
+        d, g = self.ball_distances(q, gradient=gradient, balls=balls)
+        column = np.searchsorted(sensors, self.sensor_of_ball[balls])
+        out = np.full((len(q), len(sensors)), np.inf)
+        best = np.zeros((len(q), len(sensors)), dtype=int)
+        for b, s in enumerate(column):  # a few balls per sensor; vectorised over K
+            closer = d[:, b] < out[:, s]
+            out[:, s] = np.where(closer, d[:, b], out[:, s])
+            best[:, s] = np.where(closer, b, best[:, s])
+        if not gradient:
+            return out, None
+        return out, np.take_along_axis(g, best[..., None], axis=1)
+
+    def true_contacts(self, q: np.ndarray) -> np.ndarray:
+        """(K, S) noise-free readings: f_i(q) <= contact tolerance."""
+        return self.sensor_distances(q)[0] <= self.spec.contact_tolerance_m
+
+    def in_contact(self, states: np.ndarray) -> np.ndarray:
+        """(K,) would any sensor read contact?"""
+        return self.true_contacts(states).any(axis=1)
+
+    def penetrating(self, q: np.ndarray) -> np.ndarray:
+        """(K,) how many balls are deeper than the tolerance inside an obstacle."""
+        return (self.ball_distances(q)[0] < -PENETRATION_TOLERANCE_M).sum(axis=1)
+
+    # -- motion -----------------------------------------------------------------------
+
+    def normalise(self, q: np.ndarray) -> np.ndarray:
+        """Planar angles wrapped to [-pi, pi); WAM joints clipped to their limits."""
+        return wrap_angle(q) if self.model.continuous else np.clip(q, self.lower, self.upper)
+
+    def project_free(self, q: np.ndarray) -> np.ndarray:
+        """The frictionless projection out of inter-penetration (thesis sec. 5.4.1).
+
+        Gauss-Newton on ``1/2 sum_j min(0, d_j(q))^2`` over the arm's balls: each step
+        solves ``(J^T J + lambda I) dq = -J^T r`` with the penetrating balls' rows, so the
+        arm moves along the contact normals only (no friction).
+
+        Args:
+            q: (K, dof) configurations (rad), possibly penetrating.
+
+        Returns:
+            (K, dof) configurations with no ball deeper than ``FREE_TOLERANCE_M`` where the
+            iterations reached it.
+        """
+        q = self.normalise(np.array(q, dtype=float))
+        eye = np.eye(self.dof)[None]
+        for _ in range(FREE_ITERATIONS):
+            d, g = self.ball_distances(q, gradient=True)
+            r = np.minimum(d, 0.0)
+            deep = r.min(axis=1) < -FREE_TOLERANCE_M
+            if not deep.any():
+                break
+            Jd, rd = g[deep] * (r[deep] < 0)[..., None], r[deep]
+            A = np.einsum("kbi,kbj->kij", Jd, Jd) + DAMPING * eye
+            step = np.linalg.solve(A, -np.einsum("kbi,kb->ki", Jd, rd)[..., None])[..., 0]
+            q[deep] = self.normalise(q[deep] + step)
+        return q
+
+    def uniforms_per_step(self, action: np.ndarray) -> int:
+        """dof normal directions plus one radius for the ball noise."""
+        return self.dof + 1
+
+    def step(self, states: np.ndarray, action: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """(K, dof) configurations after the commanded motion ``action`` (dof,) rad, plus
+        noise uniform in a ball of ``process_noise_radius_rad`` from ``u`` (K, dof + 1),
+        projected out of penetration."""
+        noise = ball_points(u, self.process_noise_radius_rad)
+        return self.project_free(np.asarray(states) + np.asarray(action)[None] + noise)
+
+    def sample_step(self, states: np.ndarray, action: np.ndarray, *,
+                    rng: np.random.Generator) -> np.ndarray:
+        u = rng.random((len(states), self.uniforms_per_step(action)))
+        return self.step(states, action, u)
+
+    # -- observation ------------------------------------------------------------------
+
+    def log_likelihood(self, observation: np.ndarray, states: np.ndarray,
+                       action: np.ndarray | None = None) -> np.ndarray:
+        """(K,) log p(o | q): every reading right with probability 1 - e, wrong with e; a
+        ball deep inside an obstacle counts as one wrong reading more."""
+        e = self.spec.sensor_error_rate
+        states = np.atleast_2d(states)
+        wrong = (self.true_contacts(states) != np.asarray(observation, bool)[None]).sum(1)
+        wrong = wrong + self.penetrating(states)
+        return (self.sensor_count - wrong) * np.log1p(-e) + wrong * np.log(e)
+
+    def sample_observation(self, states: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """(K, S) readings: the true contacts, each flipped when ``u`` (K, S) < e."""
+        return self.true_contacts(states) ^ (u < self.spec.sensor_error_rate)
+
+    # -- experiments ------------------------------------------------------------------
+
+    def initial_belief_states(self, encoders: np.ndarray, n: int, *,
+                              rng: np.random.Generator) -> np.ndarray:
+        """(n, dof) configurations ``o_q - dq - eps`` for the first reading (dof,) rad,
+        with ``dq ~ N(0, sd^2 I)`` and ``eps ~ U(B(0, r_q))``."""
+        dq = rng.normal(0.0, self.spec.offset_sd_rad, (n, self.dof))
+        eps = ball_points(rng.random((n, self.dof + 1)), self.spec.proprio_noise_radius_rad)
+        return self.normalise(np.asarray(encoders)[None] - dq - eps)
+
+    def simulate(self, *, rng: np.random.Generator) -> ArmTrajectory:
+        """The true arm along the commanded trajectory, and what it senses: an offset
+        ``dq ~ N(0, sd^2 I)`` for the whole run, each step the commanded motion then the
+        projection out of penetration, encoders ``q + dq + eps``, contact readings with
+        flips."""
+        commanded = self.spec.commanded_steps()
+        dq = rng.normal(0.0, self.spec.offset_sd_rad, self.dof)
+        q = self.project_free(np.array(self.spec.start_rad)[None])
+        qs = [q[0]]
+        for a in commanded:
+            q = self.project_free(q + a[None])
+            qs.append(q[0])
+        q_true = np.array(qs)
+        eps = ball_points(rng.random((len(q_true), self.dof + 1)),
+                          self.spec.proprio_noise_radius_rad)
+        contacts = self.sample_observation(q_true, rng.random((len(q_true),
+                                                               self.sensor_count)))
+        return ArmTrajectory(q_true, commanded, q_true + dq[None] + eps, contacts, dq)
+
+
+def ball_points(u: np.ndarray, radius: float) -> np.ndarray:
+    """Points uniform in the d-ball of ``radius`` from uniforms ``u`` (K, d + 1): d normal
+    deviates (inverse CDF) give the direction, ``u_d ** (1/d)`` the radius fraction."""
+    d = u.shape[1] - 1
+    z = ndtri(np.clip(u[:, :d], 1e-12, 1 - 1e-12))
+    norm = np.linalg.norm(z, axis=1, keepdims=True)
+    direction = z / np.where(norm > 0, norm, 1.0)
+    return direction * (radius * u[:, d:] ** (1.0 / d))
