@@ -245,7 +245,7 @@ def _planar_sensors(fields: Fields, links: tuple[float, ...], radius: float
                     placements.append((k, min(along / links[k], 1.0)))
                     break
                 along -= links[k]
-    for i, item in enumerate(fields.items("sensors", [])):
+    for item in fields.items("sensors", []):
         link = item.number("link", min=0, max=len(links) - 1, integer=True)
         placements.append((link, item.number("at", min=0.0, max=1.0)))
         item.done()

@@ -156,6 +156,14 @@ class ArmWorld:
             return out, None
         return out, np.take_along_axis(g, best[..., None], axis=1)
 
+    def _sensor_minimum(self, d: np.ndarray) -> np.ndarray:
+        """(K, S) each sensor's nearest ball, from all balls' distances (K, B)."""
+        out = np.full((len(d), self.sensor_count), np.inf)
+        for b in np.flatnonzero(self.sensor_of_ball >= 0):
+            s = self.sensor_of_ball[b]
+            out[:, s] = np.minimum(out[:, s], d[:, b])
+        return out
+
     def true_contacts(self, q: np.ndarray) -> np.ndarray:
         """(K, S) noise-free readings: f_i(q) <= contact tolerance."""
         return self.sensor_distances(q)[0] <= self.spec.contact_tolerance_m
@@ -190,15 +198,17 @@ class ArmWorld:
         """
         q = self.normalise(np.array(q, dtype=float))
         eye = np.eye(self.dof)[None]
+        d, _ = self.ball_distances(q)
+        deep = np.flatnonzero(d.min(axis=1) < -FREE_TOLERANCE_M)
         for _ in range(FREE_ITERATIONS):
-            d, g = self.ball_distances(q, gradient=True)
-            r = np.minimum(d, 0.0)
-            deep = r.min(axis=1) < -FREE_TOLERANCE_M
-            if not deep.any():
+            if deep.size == 0:
                 break
-            Jd, rd = g[deep] * (r[deep] < 0)[..., None], r[deep]
-            A = np.einsum("kbi,kbj->kij", Jd, Jd) + DAMPING * eye
-            step = np.linalg.solve(A, -np.einsum("kbi,kb->ki", Jd, rd)[..., None])[..., 0]
+            d, g = self.ball_distances(q[deep], gradient=True)
+            r = np.minimum(d, 0.0)
+            still = r.min(axis=1) < -FREE_TOLERANCE_M
+            deep, r, g = deep[still], r[still], g[still] * (r[still] < 0)[..., None]
+            A = np.einsum("kbi,kbj->kij", g, g) + DAMPING * eye
+            step = np.linalg.solve(A, -np.einsum("kbi,kb->ki", g, r)[..., None])[..., 0]
             q[deep] = self.normalise(q[deep] + step)
         return q
 
@@ -225,9 +235,10 @@ class ArmWorld:
         """(K,) log p(o | q): every reading right with probability 1 - e, wrong with e; a
         ball deep inside an obstacle counts as one wrong reading more."""
         e = self.spec.sensor_error_rate
-        states = np.atleast_2d(states)
-        wrong = (self.true_contacts(states) != np.asarray(observation, bool)[None]).sum(1)
-        wrong = wrong + self.penetrating(states)
+        d, _ = self.ball_distances(np.atleast_2d(states))
+        sensed = self._sensor_minimum(d) <= self.spec.contact_tolerance_m
+        wrong = (sensed != np.asarray(observation, bool)[None]).sum(1)
+        wrong = wrong + (d < -PENETRATION_TOLERANCE_M).sum(axis=1)
         return (self.sensor_count - wrong) * np.log1p(-e) + wrong * np.log(e)
 
     def sample_observation(self, states: np.ndarray, u: np.ndarray) -> np.ndarray:
