@@ -28,6 +28,15 @@ def register(commands) -> None:
     _json(mpf)
     mpf.set_defaults(handler=_mpf)
 
+    ce = subcommand(kinds, "configest", "configuration estimation: CPF and MPF-Ball update "
+                                        "times per arm, projection cost, root finders, "
+                                        "Drake's signed distance against the compiled one")
+    ce.add_argument("--arm", nargs="+", default=["2dof", "3dof", "wam"],
+                    help="arms (names or arm YAMLs)")
+    ce.add_argument("--seed", type=int, default=0, help="seeds the experiment and filters")
+    _json(ce)
+    ce.set_defaults(handler=_configest)
+
     pomdp = subcommand(kinds, "pomdp", "point-based solver bounds on Tag and RockSample(7,8) "
                                        "over 300 s, against the C++ SARSOP's published runs")
     pomdp.add_argument("--quick", action="store_true", help="stop at 30 s")
@@ -76,6 +85,16 @@ def _mpf(args: argparse.Namespace) -> int:
     from experiments.mpf_bench import run_mpf_bench
 
     write_json(run_mpf_bench(repeats=args.repeats, seed=args.seed), args.json)
+    return 0
+
+
+def _configest(args: argparse.Namespace) -> int:
+    from experiments.configest_bench import run_configest_bench
+    from models.arms.spec import ArmSpec
+
+    for arm in args.arm:  # a bad arm file fails before anything runs
+        ArmSpec.load(arm)
+    write_json(run_configest_bench(tuple(args.arm), seed=args.seed), args.json)
     return 0
 
 

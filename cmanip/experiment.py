@@ -7,11 +7,13 @@ each writing ``summary.json`` and PNGs into ``--out``.
     closedloop    closed-loop episodes in Drake from the thesis' three initial beliefs (6.5)
     visuotactile  vision + touch smoothing vs EKF and vision (Yu and Rodriguez 2018)
     latdespot     thesis ch. 7: Rel-QMDP, Rel-SARSOP and Rel-DESPOT (sec. 7.3.3)
+    configest     thesis ch. 5: robot configuration estimation, CPF vs MPF projections
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 from dataclasses import replace
 from pathlib import Path
 
@@ -133,6 +135,59 @@ def register(commands) -> None:
     vt.add_argument("--no-progress", action="store_true", help="no progress bars")
     vt.set_defaults(handler=_visuotactile)
     _register_latdespot(studies)
+    _register_configest(studies)
+
+
+def _register_configest(studies) -> None:
+    from experiments.configest_study import ARMS, ConfigestSettings
+
+    defaults = ConfigestSettings()
+    ce = subcommand(studies, "configest", "thesis ch. 5: robot configuration estimation, "
+                                          "CPF vs the MPF with implicit manifolds (Fig. 5.3)")
+    ce.add_argument("--arm", default="all",
+                    help=f"{', '.join(ARMS)}, all, or a path to an arm YAML")
+    setting_option(ce, "--trials", defaults.trials, "experiments per arm", type=int)
+    setting_option(ce, "--seed", defaults.seed, "study seed", type=int)
+    setting_option(ce, "--method", defaults.method, "projection root finder (gd: the "
+                                                    "thesis' gradient descent)",
+                   choices=("lm", "gd"))
+    setting_option(ce, "--ball-radius", "three kernel bandwidths",
+                   "MPF-Ball's r_b (rad)", type=float)
+    workers_option(ce)
+    ce.add_argument("--out", type=Path, required=True,
+                    help="output directory (summary.json, configest.png)")
+    ce.add_argument("--no-progress", action="store_true", help="no progress bars")
+    ce.set_defaults(handler=_configest)
+
+
+def _configest(args: argparse.Namespace) -> int:
+    from experiments.configest_study import ARMS, ConfigestSettings, run_study
+    from models.arms.spec import ArmSpec
+
+    arms = ARMS if args.arm == "all" else (args.arm,)
+    for arm in arms:  # a bad arm file fails before any trial runs
+        ArmSpec.load(arm)
+    given = vars(args)
+    settings = ConfigestSettings(arms=tuple(arms), **{
+        field: given[option] for option, field in [
+            ("trials", "trials"), ("seed", "seed"), ("method", "method"),
+            ("ball_radius", "ball_radius_rad")] if option in given})
+    summary = run_study(settings, args.out, workers=args.workers,
+                        progress=not args.no_progress)
+    for arm, filters in summary["arms"].items():
+        print(f"{arm}:")
+        for kind, entry in filters.items():
+            if not isinstance(entry, dict):
+                continue
+            fail = entry.get("projection_failure_rate")
+            extra = f", projection failures {fail:.0%}" if fail is not None else ""
+            print(f"  {kind:13s} RMSE mean {entry['rmse_rad_mean']:.3f} "
+                  f"+- {entry['rmse_rad_mean_ci95']:.3f} rad, final "
+                  f"{entry['rmse_rad_final']:.3f} +- {entry['rmse_rad_final_ci95']:.3f} rad, "
+                  f"{entry['update_ms_median']:.1f} ms/update{extra}")
+    print("hypotheses:", json.dumps(summary["hypotheses"]))
+    print(f"wrote {args.out}/summary.json and {args.out}/configest.png")
+    return 0
 
 
 def _register_latdespot(studies) -> None:

@@ -1,0 +1,122 @@
+"""``cmanip bench configest``: what a configuration-estimation update costs, and where the
+time goes (issue: an MPF-Ball update on the WAM under 100 ms at n = 250).
+
+Per arm, one simulated experiment filtered by the CPF and by MPF-Ball (n = 250): the
+median update time over the run's updates, and for MPF-Ball over the updates with a
+contact reading (the only ones that project) and the share of those spent projecting;
+the projection's cost per seed; the root finders side by side (the thesis' gradient
+descent and Levenberg-Marquardt on the same seeds: iterations, failures, time); and the
+environment's signed distance per point, Drake's ``ComputeSignedDistanceToPoint`` (one
+call per point) against the compiled closed forms (a batch of points), measured in the
+same run.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from estimation.configuration.manifold import ProjectionManifold
+from estimation.configuration.projection import project
+from estimation.particles.belief import ParticleBelief
+from experiments.configest_study import ConfigestSettings, arm_world, run_filter
+from models.arms.environment import drake_signed_distance
+
+
+def _timed(fn, *args, **kwargs):
+    start = time.perf_counter()
+    out = fn(*args, **kwargs)
+    return out, time.perf_counter() - start
+
+
+def bench_arm(arm: str, seed: int) -> dict:
+    """The figures of one arm (times in ms unless named otherwise)."""
+    settings = ConfigestSettings(arms=(arm,))
+    world = arm_world(arm, settings.process_noise_radius_rad)
+    trajectory = world.simulate(rng=np.random.default_rng((seed, 0)))
+    _, cpf_ms, _ = run_filter(world, trajectory, "cpf", settings,
+                              rng=np.random.default_rng((seed, 1)))
+    # MPF-Ball, with the projection's own time measured inside the run
+    manifold = ProjectionManifold(world, strategy="ball", method=settings.method)
+    sample, spent = manifold.sample, []
+
+    def timed_sample(*args, **kwargs):
+        out, seconds = _timed(sample, *args, **kwargs)
+        spent.append(seconds)
+        return out
+
+    manifold.sample = timed_sample
+    from estimation.particles.factory import make_filter
+
+    filt = make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
+                       mixing_rate=settings.mixing_rate)
+    rng = np.random.default_rng((seed, 2))
+    belief = ParticleBelief.uniform(world.initial_belief_states(
+        trajectory.encoders[0], settings.particles - settings.dual_particles, rng=rng),
+        world.angular)
+    all_ms, contact_ms = [], []
+    for t, action in enumerate(trajectory.commanded):
+        (belief, _), seconds = _timed(filt.update, belief, action,
+                                      trajectory.contacts[t + 1], rng=rng)
+        all_ms.append(seconds * 1e3)
+        if trajectory.contacts[t + 1].any():
+            contact_ms.append(seconds * 1e3)
+    projection_ms = np.array(spent) * 1e3
+    # the root finders on the same seeds: the predicted belief at the first contact
+    first = int(np.flatnonzero(trajectory.contacts.any(axis=1))[0])
+    seeds = world.normalise(np.array(trajectory.q_true[first])[None] + np.random.default_rng(
+        (seed, 3)).normal(0.0, 0.1, (250, world.dof)))
+    active = np.flatnonzero(trajectory.contacts[first])
+    finders = {}
+    for method in ("gd", "lm"):
+        result, seconds = _timed(project, world, seeds, active, method=method)
+        finders[method] = {"ms_per_seed": seconds * 1e3 / len(seeds),
+                           "iterations_mean": float(result.iterations.mean()),
+                           "failure_rate": float(1.0 - result.success.mean())}
+    # signed distance: Drake per point against the compiled batch
+    centres, _ = world.chain.centers(seeds[:20])
+    points = centres.reshape(-1, 3)
+    plant = world.model.diagram.plant()
+    scene_graph = world.model.diagram.scene_graph()
+    plant.SetPositions(world.plant_context, world.model.q_default)
+    query = scene_graph.get_query_output_port().Eval(
+        scene_graph.GetMyContextFromRoot(world.context))
+    ids = set(world.model.environment_ids)
+    _, drake_s = _timed(lambda: [drake_signed_distance(query, ids, p) for p in points])
+    world.environment.signed_distance(points)  # compiled before timing
+    _, batch_s = _timed(world.environment.signed_distance, points)
+    return {
+        "cpf_update_ms": cpf_ms,
+        "mpf_ball_update_ms": float(np.median(all_ms)),
+        "mpf_ball_contact_update_ms": float(np.median(contact_ms)) if contact_ms else None,
+        "mpf_ball_contact_update_ms_p90": (float(np.percentile(contact_ms, 90))
+                                           if contact_ms else None),
+        "projection_share_of_contact_updates": (float(projection_ms.sum() / np.sum(
+            contact_ms)) if contact_ms else None),
+        "projection_ms_per_seed": (float(projection_ms.sum() / max(manifold.stats.seeds, 1))),
+        "projection_failure_rate": manifold.stats.failure_rate,
+        "root_finders": finders,
+        "drake_signed_distance_us_per_point": drake_s * 1e6 / len(points),
+        "compiled_signed_distance_us_per_point": batch_s * 1e6 / len(points),
+        "signed_distance_speedup": drake_s / batch_s,
+        "updates": len(all_ms), "contact_updates": len(contact_ms),
+    }
+
+
+def run_configest_bench(arms: tuple[str, ...], *, seed: int = 0) -> dict:
+    """``{arm: {...}}`` for every arm, printed as it goes."""
+    report = {}
+    for arm in arms:
+        report[arm] = entry = bench_arm(arm, seed)
+        print(f"{arm}: CPF {entry['cpf_update_ms']:.1f} ms/update, MPF-Ball "
+              f"{entry['mpf_ball_update_ms']:.1f} ms/update "
+              f"({entry['mpf_ball_contact_update_ms'] or 0:.1f} ms with contact, "
+              f"{(entry['projection_share_of_contact_updates'] or 0):.0%} projecting); "
+              f"signed distance {entry['drake_signed_distance_us_per_point']:.1f} us/point "
+              f"in Drake, {entry['compiled_signed_distance_us_per_point']:.2f} compiled; "
+              f"GD {entry['root_finders']['gd']['ms_per_seed']:.2f} ms/seed "
+              f"({entry['root_finders']['gd']['failure_rate']:.0%} fail), LM "
+              f"{entry['root_finders']['lm']['ms_per_seed']:.2f} ms/seed "
+              f"({entry['root_finders']['lm']['failure_rate']:.0%} fail)", flush=True)
+    return report

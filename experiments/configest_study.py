@@ -1,0 +1,249 @@
+"""Robot configuration estimation: CPF against the MPF with implicit manifolds (thesis
+sec. 5.4, Fig. 5.3 a-c).
+
+Per arm (2-DOF, 3-DOF, WAM) and trial: one simulated experiment (a fresh encoder offset,
+the arm file's commanded trajectory), then every filter on the same readings: the CPF
+(n = 250) and the MPF with uniform, particle and ball projection (and the explicit
+manifold at 2-DOF), n = 250 as n_c = 225 propagated plus n_d = 25 dual particles with
+mixing rate 0.1 (the split of the thesis' real-robot experiments, sec. 4.4: the thesis
+does not restate it for ch. 5). Error: the weighted joint-space RMSE of the belief against
+the true configuration (rad, angles wrapped; sec. 4.3.1) after every update.
+
+``summary.json``: ``arms: {arm: {filter: {rmse_rad_mean, rmse_rad_mean_ci95,
+rmse_rad_final, rmse_rad_final_ci95, update_ms_median[, projection_failure_rate]}}}``,
+per-step mean curves with their 95 % half-widths, and the hypotheses H1-H4 of sec. 5.4
+judged on the mean RMSE.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import time
+from dataclasses import asdict, dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from estimation.configuration.manifold import ExplicitTwoLinkManifold, ProjectionManifold
+from estimation.particles.belief import ParticleBelief
+from estimation.particles.factory import make_filter
+from experiments.statistics import half_width
+from models.arms.spec import ArmSpec
+from models.arms.world import ArmWorld
+
+ARMS = ("2dof", "3dof", "wam")
+FILTERS = ("cpf", "mpf-uniform", "mpf-particle", "mpf-ball", "mpf-explicit")
+EXPLICIT_ARMS = ("2dof",)
+
+
+@dataclass(frozen=True)
+class ConfigestSettings:
+    """The study's settings.
+
+    Attributes:
+        arms: which arms (names or arm files).
+        trials: experiments per arm.
+        seed: study seed; trial j of arm a is seeded from (seed, a, j).
+        particles: n, the particle count of every filter (the MPF's n_c + n_d).
+        dual_particles: the MPF's n_d.
+        mixing_rate: the MPF's phi.
+        process_noise_radius_rad: the filters' per-step motion noise (rad).
+        method: the projection's root finder, ``lm`` or ``gd`` (thesis).
+        ball_radius_rad: MPF-Ball's r_b (None: three kernel bandwidths, sec. 5.2).
+    """
+
+    arms: tuple[str, ...] = ARMS
+    trials: int = 100
+    seed: int = 0
+    particles: int = 250
+    dual_particles: int = 25
+    mixing_rate: float = 0.1
+    process_noise_radius_rad: float = 0.01
+    method: str = "lm"
+    ball_radius_rad: float | None = None
+
+    def __post_init__(self):
+        if self.trials < 2:
+            raise ValueError(f"trials must be >= 2 (for intervals), got {self.trials}")
+        if not 0 < self.dual_particles < self.particles:
+            raise ValueError("dual_particles must be in (0, particles)")
+
+
+def filters_for(arm: str) -> tuple[str, ...]:
+    """The filters compared on ``arm`` (MPF-Explicit only where the manifold is known)."""
+    return tuple(f for f in FILTERS if f != "mpf-explicit" or arm in EXPLICIT_ARMS)
+
+
+@lru_cache(maxsize=4)
+def arm_world(arm: str, process_noise_radius_rad: float) -> ArmWorld:
+    """The arm's world, built once per process (a Drake plant does not pickle)."""
+    return ArmWorld(ArmSpec.load(arm), process_noise_radius_rad=process_noise_radius_rad)
+
+
+@dataclass(frozen=True)
+class TrialResult:
+    """One experiment: per filter, the RMSE after each update (rad) and what it cost.
+
+    Attributes:
+        rmse_rad: {filter: (T,) RMSE}.
+        update_ms: {filter: median update time (ms)}.
+        projection: {filter: (seeds, failures)} for the MPF variants.
+        contact_steps: steps with any contact reading.
+    """
+
+    rmse_rad: dict[str, np.ndarray]
+    update_ms: dict[str, float]
+    projection: dict[str, tuple[int, int]]
+    contact_steps: int
+
+
+def run_filter(world: ArmWorld, trajectory, kind: str, settings: ConfigestSettings, *,
+               rng: np.random.Generator) -> tuple[np.ndarray, float, tuple[int, int] | None]:
+    """One filter along one experiment.
+
+    Returns:
+        (RMSE after each update (T,) rad, median update time ms, (seeds, failures) of the
+        projection or None for the CPF).
+    """
+    manifold = None
+    if kind == "cpf":
+        filt = make_filter("cpf", world)
+        n = settings.particles
+    else:
+        strategy = kind.split("-", 1)[1]
+        manifold = (ExplicitTwoLinkManifold(world) if strategy == "explicit" else
+                    ProjectionManifold(world, strategy=strategy, method=settings.method,
+                                       ball_radius_rad=settings.ball_radius_rad))
+        filt = make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
+                           mixing_rate=settings.mixing_rate)
+        n = settings.particles - settings.dual_particles
+    belief = ParticleBelief.uniform(
+        world.initial_belief_states(trajectory.encoders[0], n, rng=rng), world.angular)
+    rmse, times = [], []
+    for t, action in enumerate(trajectory.commanded):
+        start = time.perf_counter()
+        belief, _ = filt.update(belief, action, trajectory.contacts[t + 1], rng=rng)
+        times.append(time.perf_counter() - start)
+        rmse.append(belief.rmse(trajectory.q_true[t + 1])[1])
+    stats = None if manifold is None else (manifold.stats.seeds, manifold.stats.failures)
+    return np.array(rmse), float(np.median(times) * 1e3), stats
+
+
+def run_trial(arm: str, arm_index: int, trial: int, settings: ConfigestSettings
+              ) -> TrialResult:
+    """Trial ``trial`` of ``arm``: one experiment, every filter on it."""
+    world = arm_world(arm, settings.process_noise_radius_rad)
+    trajectory = world.simulate(rng=np.random.default_rng((settings.seed, arm_index, trial)))
+    rmse, ms, projection = {}, {}, {}
+    for f, kind in enumerate(filters_for(arm)):
+        rng = np.random.default_rng((settings.seed, arm_index, trial, 1 + f))
+        rmse[kind], ms[kind], stats = run_filter(world, trajectory, kind, settings, rng=rng)
+        if stats is not None:
+            projection[kind] = stats
+    return TrialResult(rmse, ms, projection, int(trajectory.contacts.any(axis=1).sum()))
+
+
+def _job(job):
+    return run_trial(*job)
+
+
+def run_arm(arm: str, arm_index: int, settings: ConfigestSettings, workers: int,
+            progress: bool) -> list[TrialResult]:
+    """Every trial of one arm, in ``workers`` spawned processes; results in trial order."""
+    jobs = [(arm, arm_index, j, settings) for j in range(settings.trials)]
+    bar = tqdm(total=len(jobs), desc=f"configest {arm}", unit="trial", disable=not progress)
+    results = []
+    if workers <= 1:
+        for job in jobs:
+            results.append(_job(job))
+            bar.update()
+    else:
+        with multiprocessing.get_context("spawn").Pool(workers) as pool:
+            for result in pool.imap(_job, jobs):
+                results.append(result)
+                bar.update()
+    bar.close()
+    return results
+
+
+def summarise_arm(arm: str, results: list[TrialResult]) -> dict:
+    """Per filter: mean and final RMSE over trials with 95 % half-widths, the update time,
+    the projection failure rate, and the mean curve."""
+    out = {}
+    for kind in filters_for(arm):
+        curves = np.array([r.rmse_rad[kind] for r in results])  # (trials, T)
+        means, finals = curves.mean(axis=1), curves[:, -1]
+        entry = {
+            "rmse_rad_mean": float(means.mean()), "rmse_rad_mean_ci95": half_width(means),
+            "rmse_rad_final": float(finals.mean()),
+            "rmse_rad_final_ci95": half_width(finals),
+            "update_ms_median": float(np.median([r.update_ms[kind] for r in results])),
+            "curve_rad": [round(float(v), 5) for v in curves.mean(axis=0)],
+            "curve_rad_ci95": [round(half_width(curves[:, t]), 5)
+                               for t in range(curves.shape[1])],
+        }
+        if kind != "cpf":
+            seeds = sum(r.projection[kind][0] for r in results)
+            failures = sum(r.projection[kind][1] for r in results)
+            entry["projection_failure_rate"] = failures / seeds if seeds else 0.0
+        out[kind] = entry
+    return out
+
+
+def _better(a: dict, b: dict) -> bool:
+    """``a``'s mean RMSE is below ``b``'s, beyond both 95 % intervals."""
+    return a["rmse_rad_mean"] + a["rmse_rad_mean_ci95"] < \
+        b["rmse_rad_mean"] - b["rmse_rad_mean_ci95"]
+
+
+def _overlap(a: dict, b: dict) -> bool:
+    return abs(a["rmse_rad_mean"] - b["rmse_rad_mean"]) <= \
+        a["rmse_rad_mean_ci95"] + b["rmse_rad_mean_ci95"]
+
+
+def hypotheses(arms: dict) -> dict:
+    """H1-H4 of thesis sec. 5.4, judged on the mean RMSE and its 95 % intervals.
+
+    H1: the best MPF beats the CPF on every arm; H2: at 2-DOF every MPF variant's interval
+    overlaps every other's; H3: particle and ball projection beat uniform at 3-DOF and on
+    the WAM; H4: ball projection is the best (or within the best's interval) on the WAM.
+    Arms not run are left out.
+    """
+    out = {}
+    mpfs = {arm: {k: v for k, v in f.items() if k != "cpf"} for arm, f in arms.items()}
+    out["H1_mpf_beats_cpf"] = {arm: any(_better(v, arms[arm]["cpf"])
+                                        for v in mpfs[arm].values()) for arm in arms}
+    if "2dof" in arms:
+        v = list(mpfs["2dof"].values())
+        out["H2_alike_at_2dof"] = all(_overlap(a, b) for a in v for b in v)
+    high = [a for a in ("3dof", "wam") if a in arms]
+    out["H3_particle_ball_beat_uniform"] = {
+        arm: _better(arms[arm]["mpf-particle"], arms[arm]["mpf-uniform"])
+        and _better(arms[arm]["mpf-ball"], arms[arm]["mpf-uniform"]) for arm in high}
+    if "wam" in arms:
+        best = min(mpfs["wam"].values(), key=lambda e: e["rmse_rad_mean"])
+        out["H4_ball_best_on_wam"] = (best is mpfs["wam"]["mpf-ball"]
+                                      or _overlap(best, mpfs["wam"]["mpf-ball"]))
+    return out
+
+
+def run_study(settings: ConfigestSettings, out: Path, *, workers: int = 1,
+              progress: bool = True) -> dict:
+    """Run every arm, write ``summary.json`` and ``configest.png`` into ``out``."""
+    from experiments.configest_plots import plot_rmse
+
+    out.mkdir(parents=True, exist_ok=True)
+    arms = {}
+    for index, arm in enumerate(settings.arms):
+        results = run_arm(arm, index, settings, workers, progress)
+        arms[arm] = summarise_arm(arm, results)
+        arms[arm]["contact_steps_mean"] = float(np.mean([r.contact_steps for r in results]))
+    filters = {a: {k: v for k, v in f.items() if isinstance(v, dict)} for a, f in arms.items()}
+    summary = {"settings": asdict(settings), "arms": arms,
+               "hypotheses": hypotheses(filters),
+               "figures": [plot_rmse(filters, out / "configest.png")]}
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    return summary

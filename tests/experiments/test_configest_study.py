@@ -1,0 +1,40 @@
+"""``cmanip experiment configest`` and ``cmanip bench configest`` end to end, small."""
+
+import json
+
+from cmanip.cli import main
+
+
+def test_configest_study_writes_the_summary_the_issue_asks_for(tmp_path):
+    out = tmp_path / "ce"
+    assert main(["experiment", "configest", "--arm", "2dof", "--trials", "2", "--out",
+                 str(out), "--no-progress"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    filters = summary["arms"]["2dof"]
+    for kind in ("cpf", "mpf-uniform", "mpf-particle", "mpf-ball", "mpf-explicit"):
+        entry = filters[kind]
+        for key in ("rmse_rad_mean", "rmse_rad_mean_ci95", "rmse_rad_final",
+                    "rmse_rad_final_ci95"):
+            assert entry[key] >= 0
+        assert ("projection_failure_rate" in entry) == (kind != "cpf")
+    assert "H2_alike_at_2dof" in summary["hypotheses"]
+    assert (out / "configest.png").stat().st_size > 10_000
+
+
+def test_bad_arm_is_a_clear_error(tmp_path, capsys):
+    assert main(["experiment", "configest", "--arm", "4dof", "--trials", "2", "--out",
+                 str(tmp_path)]) == 2
+    assert "unknown arms name" in capsys.readouterr().err
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("kind: planar\nlinks_m: [0.5]\nlink_radius_m: 0.01\n")
+    assert main(["bench", "configest", "--arm", str(bad)]) == 2
+    assert "bad.yaml" in capsys.readouterr().err
+
+
+def test_bench_reports_update_times_and_the_signed_distance_speedup(tmp_path):
+    report = tmp_path / "bench.json"
+    assert main(["bench", "configest", "--arm", "2dof", "--json", str(report)]) == 0
+    entry = json.loads(report.read_text())["2dof"]
+    assert entry["cpf_update_ms"] > 0 and entry["mpf_ball_update_ms"] > 0
+    assert set(entry["root_finders"]) == {"gd", "lm"}
+    assert entry["signed_distance_speedup"] > 1

@@ -1,0 +1,106 @@
+"""The arms of thesis ch. 5 as Drake plants: batched kinematics and signed distance agree
+with Drake, the sensors' gradients with finite differences, bad arm files fail clearly."""
+
+from functools import lru_cache
+
+import numpy as np
+import pytest
+from pydrake.multibody.tree import JacobianWrtVariable
+
+from models.arms.environment import drake_signed_distance
+from models.arms.spec import ArmSpec
+from models.arms.world import ArmWorld, ball_points
+from models.config import ConfigError
+
+
+@lru_cache(maxsize=3)
+def world(arm: str) -> ArmWorld:
+    return ArmWorld(ArmSpec.load(arm))
+
+
+def _random_configurations(w: ArmWorld, n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return w.normalise(np.array(w.spec.start_rad) + rng.normal(0.0, 0.4, (n, w.dof)))
+
+
+@pytest.mark.parametrize("arm", ["2dof", "3dof", "wam"])
+def test_ball_kinematics_and_signed_distance_match_drake(arm):
+    w = world(arm)
+    plant, scene_graph = w.model.diagram.plant(), w.model.diagram.scene_graph()
+    q = _random_configurations(w, 3, seed=1)
+    centres, jacobians = w.chain.centers(q, jacobian=True)
+    ids = set(w.model.environment_ids)
+    for k in range(len(q)):
+        plant.SetPositions(w.plant_context, w.model.full_positions(q[k]))
+        query = scene_graph.get_query_output_port().Eval(
+            scene_graph.GetMyContextFromRoot(w.context))
+        for b, ball in enumerate(w.balls):
+            frame = plant.GetBodyByName(ball.link).body_frame()
+            p_L = np.array(ball.center_m)[:, None]
+            p_W = plant.CalcPointsPositions(w.plant_context, frame, p_L,
+                                            plant.world_frame()).ravel()
+            J = plant.CalcJacobianTranslationalVelocity(
+                w.plant_context, JacobianWrtVariable.kQDot, frame, p_L, plant.world_frame(),
+                plant.world_frame())[:, w.model.q_indices]
+            np.testing.assert_allclose(centres[k, b], p_W, atol=1e-9)
+            np.testing.assert_allclose(jacobians[k, b], J, atol=1e-9)
+            d_drake, g_drake = drake_signed_distance(query, ids, p_W)
+            d, g = w.environment.signed_distance(p_W[None])
+            assert d[0] == pytest.approx(d_drake, abs=1e-9)
+            np.testing.assert_allclose(g[0], g_drake, atol=1e-9)
+
+
+@pytest.mark.parametrize("arm", ["3dof", "wam"])
+def test_sensor_gradient_is_eq_5_4_and_matches_finite_differences(arm):
+    w = world(arm)
+    q = _random_configurations(w, 4, seed=2)
+    f, grad = w.sensor_distances(q, gradient=True)
+    h = 1e-6
+    for j in range(w.dof):
+        step = np.zeros(w.dof)
+        step[j] = h
+        numeric = (w.sensor_distances(q + step)[0] - w.sensor_distances(q - step)[0]) / (2 * h)
+        smooth = np.abs(numeric - grad[..., j]) < 1e-4  # away from the min's kinks
+        assert smooth.mean() > 0.95
+        np.testing.assert_allclose(grad[..., j][smooth], numeric[smooth], atol=1e-4)
+
+
+def test_projection_out_of_penetration_leaves_no_ball_inside():
+    w = world("3dof")
+    q = _random_configurations(w, 200, seed=3)
+    free = w.project_free(q)
+    assert w.ball_distances(free)[0].min() > -1e-4
+    untouched = w.ball_distances(q)[0].min(axis=1) >= 0
+    np.testing.assert_allclose(free[untouched], q[untouched])
+
+
+def test_the_simulated_arm_touches_and_the_readings_follow_the_geometry():
+    w = world("2dof")
+    run = w.simulate(rng=np.random.default_rng(0))
+    truth = w.true_contacts(run.q_true)
+    assert truth.any(axis=1).sum() >= 20  # two touches of the point
+    assert (run.contacts != truth).mean() < 0.01  # flips at the sensor error rate
+    np.testing.assert_allclose(run.encoders - run.q_true - run.offset, 0.0,
+                               atol=w.spec.proprio_noise_radius_rad + 1e-12)
+
+
+def test_ball_noise_is_inside_the_ball_and_fills_it():
+    points = ball_points(np.random.default_rng(0).random((20000, 4)), 0.5)
+    norms = np.linalg.norm(points, axis=1)
+    assert norms.max() <= 0.5
+    # uniform in a 3-ball: P(|x| < r/2) = 1/8
+    assert (norms < 0.25).mean() == pytest.approx(1 / 8, abs=0.01)
+
+
+def test_bad_arm_files_name_the_file_and_field(tmp_path):
+    bad = tmp_path / "arm.yaml"
+    bad.write_text((ArmSpec.load("wam").source and open(ArmSpec.load("wam").source).read())
+                   .replace("link: wam4", "link: wam44", 1))
+    with pytest.raises(ConfigError, match=r"arm\.yaml.*sensors\[forearm_0\].*wam44"):
+        ArmWorld(ArmSpec.load(bad))
+    bad.write_text("kind: planar\nlinks_m: [0.5, -1]\n")
+    with pytest.raises(ConfigError, match=r"links_m\[1\]"):
+        ArmSpec.load(bad)
+    bad.write_text(open(ArmSpec.load("2dof").source).read().replace("steps: 180", "steps: 0"))
+    with pytest.raises(ConfigError, match=r"trajectory\[0\]\.steps"):
+        ArmSpec.load(bad)
