@@ -6,8 +6,9 @@ the arm file's commanded trajectory), then every filter on the same readings: th
 (n = 250) and the MPF with uniform, particle and ball projection (and the explicit
 manifold at 2-DOF), n = 250 as n_c = 225 propagated plus n_d = 25 dual particles with
 mixing rate 0.1 (the split of the thesis' real-robot experiments, sec. 4.4: the thesis
-does not restate it for ch. 5). Error: the weighted joint-space RMSE of the belief against
-the true configuration (rad, angles wrapped; sec. 4.3.1) after every update.
+does not restate it for ch. 5). Error: the weighted joint-space RMSE of the belief's
+configurations (each particle projected out of penetration) against the true
+configuration (rad, angles wrapped; sec. 4.3.1) after every update.
 
 ``summary.json``: ``arms: {arm: {filter: {rmse_rad_mean, rmse_rad_mean_ci95,
 rmse_rad_final, rmse_rad_final_ci95, update_ms_median[, projection_failure_rate]}}}``,
@@ -27,6 +28,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from estimation.configuration.belief import configuration_belief
 from estimation.configuration.manifold import ExplicitTwoLinkManifold, ProjectionManifold
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.factory import make_filter
@@ -127,7 +129,7 @@ def run_filter(world: ArmWorld, trajectory, kind: str, settings: ConfigestSettin
         start = time.perf_counter()
         belief, _ = filt.update(belief, action, trajectory.contacts[t + 1], rng=rng)
         times.append(time.perf_counter() - start)
-        rmse.append(belief.rmse(trajectory.q_true[t + 1])[1])
+        rmse.append(configuration_belief(world, belief).rmse(trajectory.q_true[t + 1])[1])
     stats = None if manifold is None else (manifold.stats.seeds, manifold.stats.failures)
     return np.array(rmse), float(np.median(times) * 1e3), stats
 

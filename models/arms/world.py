@@ -1,23 +1,28 @@
 """An arm in its known static world: contact sensing, the motion model and proprioception
 (thesis sec. 3.2, 3.3 and 5.4.1), batched over K configurations.
 
-**State.** A particle is the arm's configuration q (dof,) rad, not the encoder offset:
-the contact manifold, the projection and the error the thesis plots all live in
-configuration space, and the motion model acts on configurations (an arm blocked by an
-obstacle stops where the obstacle is, whatever its encoders say). The offset
-``dq = o_q - q - eps`` is constant over an experiment (sec. 5.4.1: drawn once per trial),
-so the encoders' first reading carries all they can say about it: the initial belief is
-``q_0 = o_q,0 - dq - eps`` with ``dq ~ N(0, Sigma_dq)`` and ``eps ~ U(B(0, r_q))``. Later
-readings add nothing but noise while the arm moves as commanded, and where it does not
-(blocked by contact) the contact sensors say so; they are recorded but not weighed again,
-which would count the same offset twice.
+**State.** A particle is the arm's *commanded-side* configuration q (dof,) rad: where the
+arm would be without contact, the encoders' reading less the offset
+(``q = o_q - dq - eps``). Its actual configuration is ``Pi(q)``, q projected out of
+inter-penetration (below); out of contact the two are the same. The offset is constant
+over an experiment (sec. 5.4.1: drawn once per trial), so this state is the offset in
+disguise, the representation of the authors' 2-D demo (TouchFilter2D: configuration =
+encoders + offset particle); we keep it in configuration space, where the contact
+manifold, the projection and the error the thesis plots live. The encoders' first reading
+gives the initial belief, ``o_q,0 - dq - eps`` with ``dq ~ N(0, Sigma_dq)`` and
+``eps ~ U(B(0, r_q))``; later readings repeat the same offset plus fresh noise, so they
+are not weighed again (that would count the offset once per step).
 
 **Motion** (sec. 5.4.1): the commanded joint motion, then a frictionless projection out of
-inter-penetration: Gauss-Newton on the penetration depths of the arm's balls (each
-moves along its contact normal only), joint limits clipped, planar joints wrapped. The
-filter adds ``process_noise_radius_rad`` of uniform noise in a ball to each commanded step
-(the thesis' motion is deterministic; a particle filter needs some diffusion, and the
-authors' demo uses a 0.01 rad random walk).
+inter-penetration: Gauss-Newton on the penetration depths of the arm's balls (each ball
+moves along its contact normal only), joint limits clipped, planar joints wrapped. HERB's
+arm is position-controlled: it goes to each commanded configuration unless an obstacle is
+in the way, and returns to the commanded path when the contact ends. So the commanded
+motion moves the state, and the projection gives the actual configuration from it at
+every step, without being accumulated (in the authors' demo, too, the pushed-out
+configuration lasts one step). The filter adds ``process_noise_radius_rad`` of uniform
+noise in a ball to each commanded step (the thesis' motion is deterministic; a particle
+filter needs some diffusion, and the authors' demo uses a 0.01 rad random walk).
 
 **Contact sensing** (sec. 3.3, eq. 5.3): sensor i is active when
 ``f_i(q) = min_j F(c_ij(q)) - r_ij <= contact_tolerance_m``; each reading is flipped with
@@ -58,6 +63,8 @@ class ArmTrajectory:
 
     Attributes:
         q_true: (T+1, dof) true configurations (rad), from the start.
+        q_free: (T+1, dof) the true state: the commanded-side configurations, which
+            ``q_true`` is projected from (rad).
         commanded: (T, dof) commanded joint motion per step (rad).
         encoders: (T+1, dof) proprioceptive readings o_q = q + dq + eps (rad).
         contacts: (T+1, S) bool contact readings (after the start, and each step).
@@ -65,6 +72,7 @@ class ArmTrajectory:
     """
 
     q_true: np.ndarray
+    q_free: np.ndarray
     commanded: np.ndarray
     encoders: np.ndarray
     contacts: np.ndarray
@@ -169,8 +177,8 @@ class ArmWorld:
         return self.sensor_distances(q)[0] <= self.spec.contact_tolerance_m
 
     def in_contact(self, states: np.ndarray) -> np.ndarray:
-        """(K,) would any sensor read contact?"""
-        return self.true_contacts(states).any(axis=1)
+        """(K,) would any sensor read contact at the states' actual configurations?"""
+        return self.true_contacts(self.project_free(states)).any(axis=1)
 
     def penetrating(self, q: np.ndarray) -> np.ndarray:
         """(K,) how many balls are deeper than the tolerance inside an obstacle."""
@@ -217,11 +225,10 @@ class ArmWorld:
         return self.dof + 1
 
     def step(self, states: np.ndarray, action: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """(K, dof) configurations after the commanded motion ``action`` (dof,) rad, plus
-        noise uniform in a ball of ``process_noise_radius_rad`` from ``u`` (K, dof + 1),
-        projected out of penetration."""
+        """(K, dof) states after the commanded motion ``action`` (dof,) rad, plus noise
+        uniform in a ball of ``process_noise_radius_rad`` from ``u`` (K, dof + 1)."""
         noise = ball_points(u, self.process_noise_radius_rad)
-        return self.project_free(np.asarray(states) + np.asarray(action)[None] + noise)
+        return self.normalise(np.asarray(states) + np.asarray(action)[None] + noise)
 
     def sample_step(self, states: np.ndarray, action: np.ndarray, *,
                     rng: np.random.Generator) -> np.ndarray:
@@ -232,18 +239,21 @@ class ArmWorld:
 
     def log_likelihood(self, observation: np.ndarray, states: np.ndarray,
                        action: np.ndarray | None = None) -> np.ndarray:
-        """(K,) log p(o | q): every reading right with probability 1 - e, wrong with e; a
-        ball deep inside an obstacle counts as one wrong reading more."""
+        """(K,) log p(o | q) at the states' actual configurations: every reading right
+        with probability 1 - e, wrong with e; a ball still deep inside an obstacle counts
+        as one wrong reading more."""
         e = self.spec.sensor_error_rate
-        d, _ = self.ball_distances(np.atleast_2d(states))
+        d, _ = self.ball_distances(self.project_free(np.atleast_2d(states)))
         sensed = self._sensor_minimum(d) <= self.spec.contact_tolerance_m
         wrong = (sensed != np.asarray(observation, bool)[None]).sum(1)
         wrong = wrong + (d < -PENETRATION_TOLERANCE_M).sum(axis=1)
         return (self.sensor_count - wrong) * np.log1p(-e) + wrong * np.log(e)
 
     def sample_observation(self, states: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """(K, S) readings: the true contacts, each flipped when ``u`` (K, S) < e."""
-        return self.true_contacts(states) ^ (u < self.spec.sensor_error_rate)
+        """(K, S) readings at the states' actual configurations, each flipped when ``u``
+        (K, S) < e."""
+        return (self.true_contacts(self.project_free(states))
+                ^ (u < self.spec.sensor_error_rate))
 
     # -- experiments ------------------------------------------------------------------
 
@@ -257,22 +267,20 @@ class ArmWorld:
 
     def simulate(self, *, rng: np.random.Generator) -> ArmTrajectory:
         """The true arm along the commanded trajectory, and what it senses: an offset
-        ``dq ~ N(0, sd^2 I)`` for the whole run, each step the commanded motion then the
-        projection out of penetration, encoders ``q + dq + eps``, contact readings with
+        ``dq ~ N(0, sd^2 I)`` for the whole run; each step the commanded configuration,
+        projected out of penetration; encoders ``q + dq + eps``; contact readings with
         flips."""
         commanded = self.spec.commanded_steps()
         dq = rng.normal(0.0, self.spec.offset_sd_rad, self.dof)
-        q = self.project_free(np.array(self.spec.start_rad)[None])
-        qs = [q[0]]
-        for a in commanded:
-            q = self.project_free(q + a[None])
-            qs.append(q[0])
-        q_true = np.array(qs)
+        q_free = self.normalise(np.array(self.spec.start_rad)[None] + np.concatenate(
+            [np.zeros((1, self.dof)), np.cumsum(commanded, axis=0)]))
+        q_true = self.project_free(q_free)
         eps = ball_points(rng.random((len(q_true), self.dof + 1)),
                           self.spec.proprio_noise_radius_rad)
         contacts = self.sample_observation(q_true, rng.random((len(q_true),
                                                                self.sensor_count)))
-        return ArmTrajectory(q_true, commanded, q_true + dq[None] + eps, contacts, dq)
+        return ArmTrajectory(q_true, q_free, commanded, self.normalise(q_true + dq + eps),
+                             contacts, dq)
 
 
 def ball_points(u: np.ndarray, radius: float) -> np.ndarray:
