@@ -7,6 +7,7 @@ and force. Commands:
 
     simulate    push an object straight ahead in a scene (replay.html, summary.json)
     run         one closed-loop episode: HERB pushes an object into the goal by touch
+    configest   robot configuration estimation by touch in the HERB diagram (ch. 5)
     push        the pusher-slider rig: simulate a procedure into a log, estimate any log
     pomdp       write or solve Cassandra .pomdp files with the point-based solver
     bench       measurements (time step, filters, solvers, smoother)
@@ -22,11 +23,11 @@ from __future__ import annotations
 import argparse
 import sys
 
-from cmanip import bench, experiment, pomdp, push, run, scenes, simulate
+from cmanip import bench, configest, experiment, pomdp, push, run, scenes, simulate
 from cmanip.options import HelpFormatter
 from models.config import ConfigError
 
-GROUPS = (simulate, run, push, pomdp, bench, experiment, scenes)
+GROUPS = (simulate, run, configest, push, pomdp, bench, experiment, scenes)
 
 
 def build_parser() -> argparse.ArgumentParser:

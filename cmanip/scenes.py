@@ -5,7 +5,7 @@ from __future__ import annotations
 from cmanip.options import subcommand
 from models.config import builtin_names
 
-KINDS = ("scenes", "objects", "tactile", "planar_sensors")
+KINDS = ("scenes", "objects", "tactile", "planar_sensors", "arms")
 
 
 def register(commands) -> None:

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.geometry import Box, GeometryId, Sphere
+from pydrake.geometry import Box, Cylinder, GeometryId, Sphere
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.tree import (
     FixedOffsetFrame,
@@ -24,7 +24,7 @@ from pydrake.multibody.tree import (
 )
 from pydrake.planning import RobotDiagram, RobotDiagramBuilder
 
-from models.arms.spec import ArmSpec, check_links
+from models.arms.spec import ArmSpec, Ball, check_links
 from models.bodies import add_geometry
 from models.contact import TABLE_MATERIAL
 from models.herb.kinematics import robot_diagram
@@ -134,3 +134,50 @@ def _build_herb(spec: ArmSpec) -> ArmModel:
                     plant.GetPositionUpperLimits()[indices], continuous=False,
                     link_names={plant.get_body(i).name() for instance in robot
                                 for i in plant.GetBodyIndices(instance)})
+
+
+def geometry_balls(model: ArmModel, links: tuple[str, ...]) -> tuple[Ball, ...]:
+    """Balls covering the collision geometry of ``links``, in each link's frame.
+
+    A sphere is itself; a cylinder, balls of its radius every radius along its axis; a
+    box, balls of half its middle dimension every such radius along its longest one (so a
+    thin plate is covered with its thickness overestimated, which errs towards contact).
+
+    Raises:
+        ValueError: a geometry of another shape.
+    """
+    plant = model.diagram.plant()
+    inspector = model.diagram.scene_graph().model_inspector()
+    balls = []
+    for link in links:
+        body = plant.GetBodyByName(link)
+        for gid in plant.GetCollisionGeometriesForBody(body):
+            shape, X = inspector.GetShape(gid), inspector.GetPoseInFrame(gid)
+            if isinstance(shape, Sphere):
+                local, radius = [np.zeros(3)], shape.radius()
+            elif isinstance(shape, Cylinder):
+                radius = shape.radius()
+                local = [np.array([0.0, 0.0, z]) for z in _along(shape.length(), radius)]
+            elif isinstance(shape, Box):
+                size = np.array(shape.size())
+                order = np.argsort(size)
+                radius = size[order[1]] / 2
+                local = []
+                for z in _along(size[order[2]], radius):
+                    point = np.zeros(3)
+                    point[order[2]] = z
+                    local.append(point)
+            else:
+                raise ValueError(f"{link}: geometry {inspector.GetName(gid)!r} is a "
+                                 f"{type(shape).__name__}; spheres, cylinders and boxes "
+                                 "can be covered by balls")
+            balls += [Ball(link, tuple(float(v) for v in X.multiply(p)), float(radius))
+                      for p in local]
+    return tuple(balls)
+
+
+def _along(length: float, radius: float) -> np.ndarray:
+    """Centres every ``radius`` along a segment of ``length``, the ends' balls inside it."""
+    half = max(length / 2 - radius, 0.0)
+    count = int(np.ceil(2 * half / radius)) + 1 if half > 0 else 1
+    return np.linspace(-half, half, count)

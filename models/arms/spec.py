@@ -12,13 +12,18 @@ An arm file (``models/assets/arms/<name>.yaml`` or any path) has a ``kind``:
 - ``herb``: HERB's WAM and BarrettHand in a HERB scene (``scene``: a scene name or path;
   its obstacles and table are the environment, its movable object is left out); sensors
   and body balls are listed per link (``sensors: [{name, balls: [{link, center_m,
-  radius_m}]}]``, ``body: [...]``), in the link's own frame.
+  radius_m}]}]``, ``body: [...]``), in the link's own frame; ``body_links`` names links
+  whose Drake collision geometry is covered by balls automatically
+  (:func:`models.arms.plant.geometry_balls`), so the arm the estimator models has the
+  extent of the arm the physics simulates.
 
 Both kinds share the noise and the experiment: ``offset_sd_rad`` (the encoder offset's
 standard deviation per joint, Sigma_dq^(1/2) of sec. 5.4.1), ``proprio_noise_radius_rad``
-(r_q: encoder noise uniform in a ball), ``sensor_error_rate`` (per sensor and step, the
-probability that a reading is flipped; the thesis gives none for ch. 5, we choose 0.001 so
-that no reading is impossible under the model), ``contact_tolerance_m`` (a sensor is active
+(r_q: encoder noise uniform in a ball), ``sensor_error_rate`` (per sensor and step while
+the arm touches anything, the probability that a reading is flipped; the thesis gives
+none for ch. 5, we choose 0.001 by default), ``free_false_positive_rate`` (the probability
+of a contact reading while the arm touches nothing; default 0, the thesis' "perfectly
+discriminative" sensors of sec. 4.4.1), ``contact_tolerance_m`` (a sensor is active
 when its signed distance is at most this), ``start_rad`` (the true start configuration)
 and ``trajectory`` (commanded joint motion: ``[{to_rad: [...], steps: N}, ...]``, moved
 in N equal steps from where the last segment ended).
@@ -103,10 +108,14 @@ class ArmSpec:
         sensors: the binary contact sensors, in observation order.
         body: the non-sensing balls of the arm's body (with the sensors' balls, what the
             projection out of penetration keeps out of obstacles).
+        body_links: links whose collision geometry adds non-sensing balls (``herb``).
         obstacles: a planar world's obstacles.
         offset_sd_rad: encoder offset standard deviation per joint (rad).
         proprio_noise_radius_rad: r_q, encoder noise radius (rad).
-        sensor_error_rate: probability that a sensor's reading is flipped, per step.
+        sensor_error_rate: probability that a sensor's reading is flipped, per step, while
+            the arm touches anything.
+        free_false_positive_rate: probability of a contact reading, per sensor and step,
+            while the arm touches nothing.
         contact_tolerance_m: a sensor is active when its signed distance is at most this.
         start_rad: true start configuration (rad).
         trajectory: the commanded motion of the experiment.
@@ -121,6 +130,7 @@ class ArmSpec:
     offset_sd_rad: float
     proprio_noise_radius_rad: float
     sensor_error_rate: float
+    free_false_positive_rate: float
     contact_tolerance_m: float
     start_rad: tuple[float, ...]
     trajectory: tuple[TrajectorySegment, ...]
@@ -128,6 +138,7 @@ class ArmSpec:
     link_radius_m: float = 0.0
     scene: str | Path = ""
     obstacles: tuple[ObstacleSpec, ...] = ()
+    body_links: tuple[str, ...] = ()
     source: str = ""
 
     @property
@@ -173,7 +184,8 @@ class ArmSpec:
             sensors = tuple(_herb_sensor(item, i) for i, item
                             in enumerate(fields.items("sensors")))
             body = tuple(_ball(item) for item in fields.items("body", []))
-            dof, extra = 7, {"scene": scene}
+            dof, extra = 7, {"scene": scene,
+                             "body_links": tuple(fields.string_list("body_links", ()))}
         if not sensors:
             raise fields.error("sensors", "at least one sensor is needed")
         names = [s.name for s in sensors]
@@ -194,6 +206,8 @@ class ArmSpec:
             proprio_noise_radius_rad=fields.number("proprio_noise_radius_rad", min=0.0,
                                                    max=1.0),
             sensor_error_rate=fields.number("sensor_error_rate", 0.001, min=1e-9, max=0.5),
+            free_false_positive_rate=fields.number("free_false_positive_rate", 0.0, min=0.0,
+                                                   max=0.5),
             contact_tolerance_m=fields.number("contact_tolerance_m", 0.001, min=1e-6,
                                               max=0.1),
             start_rad=start, trajectory=tuple(trajectory), source=str(path), **extra)
@@ -305,6 +319,10 @@ def check_links(spec: ArmSpec, link_names: set[str]) -> None:
     Raises:
         ConfigError: naming the arm file, the sensor or body ball and the known links.
     """
+    for link in spec.body_links:
+        if link not in link_names:
+            raise ConfigError(spec.source, "body_links", f"unknown link {link!r}; the "
+                              f"robot's links: {', '.join(sorted(link_names))}")
     for label, balls in [(f"sensors[{s.name}]", s.balls) for s in spec.sensors] + [
             ("body", spec.body)]:
         for ball in balls:

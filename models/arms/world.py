@@ -25,8 +25,10 @@ noise in a ball to each commanded step (the thesis' motion is deterministic; a p
 filter needs some diffusion, and the authors' demo uses a 0.01 rad random walk).
 
 **Contact sensing** (sec. 3.3, eq. 5.3): sensor i is active when
-``f_i(q) = min_j F(c_ij(q)) - r_ij <= contact_tolerance_m``; each reading is flipped with
-probability ``sensor_error_rate``. The likelihood also counts each ball deeper than
+``f_i(q) = min_j F(c_ij(q)) - r_ij <= contact_tolerance_m``; while the arm touches
+anything, each reading is flipped with probability ``sensor_error_rate``, and while it
+touches nothing, a reading is on with probability ``free_false_positive_rate`` (the
+thesis' model of sec. 4.4.1: "perfectly discriminative", wrong only during contact). The likelihood also counts each ball deeper than
 ``PENETRATION_TOLERANCE_M`` inside an obstacle as one contradicted reading: such a state
 is (almost) impossible, and dual samples projected onto a contact can land there.
 """
@@ -40,15 +42,22 @@ from scipy.special import ndtri
 
 from models.arms.chain import BallChain
 from models.arms.environment import Environment
-from models.arms.plant import ArmModel, build_arm
+from models.arms.plant import ArmModel, build_arm, geometry_balls
 from models.arms.spec import ArmSpec
 from models.pose import wrap_angle
+
+FREE_READING_FLOOR = 1e-6
+"""The likelihood's floor for a contact reading where the arm touches nothing."""
 
 PENETRATION_TOLERANCE_M = 0.005
 """A ball deeper than this inside an obstacle makes a state (nearly) impossible (m)."""
 
-FREE_ITERATIONS = 20
+FREE_ITERATIONS = 40
 """Gauss-Newton iterations of the projection out of penetration."""
+
+MAX_FREE_STEP_RAD = 0.05
+"""Trust region of one projection step (rad): a deep penetration is undone in small steps
+that follow the contact normals, not by one linearised jump that can land anywhere."""
 
 FREE_TOLERANCE_M = 1e-5
 """The projection out of penetration stops when no ball is deeper than this (m)."""
@@ -103,11 +112,12 @@ class ArmWorld:
         self.environment = Environment.from_scene_graph(
             diagram.scene_graph().model_inspector(), query, self.model.environment_ids)
         sensor_balls = [b for s in spec.sensors for b in s.balls]
-        self.balls = tuple(sensor_balls) + spec.body
+        body = spec.body + geometry_balls(self.model, spec.body_links)
+        self.balls = tuple(sensor_balls) + body
         self.chain = BallChain(plant, self.plant_context, self.model.joints, self.balls)
         self.sensor_of_ball = np.concatenate(
             [np.full(len(s.balls), i) for i, s in enumerate(spec.sensors)]
-            + [np.full(len(spec.body), -1)]).astype(int)
+            + [np.full(len(body), -1)]).astype(int)
         self.dof = spec.dof
         self.sensor_count = len(spec.sensors)
         self.angular = tuple(range(self.dof))
@@ -217,6 +227,8 @@ class ArmWorld:
             deep, r, g = deep[still], r[still], g[still] * (r[still] < 0)[..., None]
             A = np.einsum("kbi,kbj->kij", g, g) + DAMPING * eye
             step = np.linalg.solve(A, -np.einsum("kbi,kb->ki", g, r)[..., None])[..., 0]
+            norm = np.linalg.norm(step, axis=1, keepdims=True)
+            step *= np.minimum(1.0, MAX_FREE_STEP_RAD / np.maximum(norm, 1e-12))
             q[deep] = self.normalise(q[deep] + step)
         return q
 
@@ -239,21 +251,32 @@ class ArmWorld:
 
     def log_likelihood(self, observation: np.ndarray, states: np.ndarray,
                        action: np.ndarray | None = None) -> np.ndarray:
-        """(K,) log p(o | q) at the states' actual configurations: every reading right
-        with probability 1 - e, wrong with e; a ball still deep inside an obstacle counts
-        as one wrong reading more."""
-        e = self.spec.sensor_error_rate
+        """(K,) log p(o | q) at the states' actual configurations (thesis sec. 4.4.1's
+        sensor model): while any sensor touches, each reading is right with probability
+        1 - e and wrong with e; while none touches, each reads contact with probability
+        f0 (``free_false_positive_rate``, floored at :data:`FREE_READING_FLOOR` so that no
+        reading is impossible). A ball still deep inside an obstacle counts as one wrong
+        reading more."""
+        e, f0 = self.spec.sensor_error_rate, self.spec.free_false_positive_rate
+        f0 = max(f0, FREE_READING_FLOOR)
         d, _ = self.ball_distances(self.project_free(np.atleast_2d(states)))
         sensed = self._sensor_minimum(d) <= self.spec.contact_tolerance_m
-        wrong = (sensed != np.asarray(observation, bool)[None]).sum(1)
-        wrong = wrong + (d < -PENETRATION_TOLERANCE_M).sum(axis=1)
-        return (self.sensor_count - wrong) * np.log1p(-e) + wrong * np.log(e)
+        observation = np.asarray(observation, bool)
+        wrong = (sensed != observation[None]).sum(1)
+        touching = sensed.any(axis=1)
+        lit = int(observation.sum())
+        log_p = np.where(touching, (self.sensor_count - wrong) * np.log1p(-e)
+                         + wrong * np.log(e),
+                         lit * np.log(f0) + (self.sensor_count - lit) * np.log1p(-f0))
+        return log_p + (d < -PENETRATION_TOLERANCE_M).sum(axis=1) * np.log(e)
 
     def sample_observation(self, states: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """(K, S) readings at the states' actual configurations, each flipped when ``u``
-        (K, S) < e."""
-        return (self.true_contacts(self.project_free(states))
-                ^ (u < self.spec.sensor_error_rate))
+        """(K, S) readings at the states' actual configurations: each flipped when ``u``
+        (K, S) < e while any sensor touches; each on when ``u`` < f0 while none does."""
+        truth = self.true_contacts(self.project_free(states))
+        touching = truth.any(axis=1, keepdims=True)
+        return np.where(touching, truth ^ (u < self.spec.sensor_error_rate),
+                        u < self.spec.free_false_positive_rate)
 
     # -- experiments ------------------------------------------------------------------
 
