@@ -5,8 +5,9 @@ Drake evaluates one context at a time (set positions, then ask a frame's pose or
 point's Jacobian), about 10-50 microseconds per call from Python; the constraint
 projection asks for every ball of every particle at every iteration. :class:`BallChain`
 reads the chain's fixed transforms and joint axes from the plant and evaluates all K
-configurations at once in compiled loops (Numba): ``X_WB_k = X_WB_{k-1} X_PF_k Rot(axis_k, q_k) X_MC_k``
-and, for a point p on link m, the Jacobian columns ``z_j x (p - o_j)`` for joints j <= m
+configurations at once in compiled loops (Numba):
+``X_WB_k = X_WB_{k-1} X_PF_k Rot(axis_k, q_k) X_MC_k`` and, for a point p on link m, the
+Jacobian columns ``z_j x (p - o_j)`` for joints j <= m
 (the revolute joint's axis z_j and origin o_j in the world). Tests check both against
 Drake's ``CalcPointsPositions`` and ``CalcJacobianTranslationalVelocity`` to 1e-9.
 """

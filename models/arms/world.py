@@ -28,8 +28,9 @@ filter needs some diffusion, and the authors' demo uses a 0.01 rad random walk).
 ``f_i(q) = min_j F(c_ij(q)) - r_ij <= contact_tolerance_m``; while the arm touches
 anything, each reading is flipped with probability ``sensor_error_rate``, and while it
 touches nothing, a reading is on with probability ``free_false_positive_rate`` (the
-thesis' model of sec. 4.4.1: "perfectly discriminative", wrong only during contact). The likelihood also counts each ball deeper than
-``PENETRATION_TOLERANCE_M`` inside an obstacle as one contradicted reading: such a state
+thesis' model of sec. 4.4.1: "perfectly discriminative", wrong only during contact).
+The likelihood also counts each ball deeper than ``PENETRATION_TOLERANCE_M`` inside an
+obstacle as one contradicted reading: such a state
 is (almost) impossible, and dual samples projected onto a contact can land there.
 """
 
