@@ -180,8 +180,8 @@ class ArmBeliefDrawer(LeafSystem):
                 meshcat.SetLine(f"{path}/{k}", line.T, 1.0, GHOST_RGBA)
             for i, path in enumerate(self._mean_paths):
                 meshcat.SetLine(f"{path}/{k}", line.T, 4.0, MEAN_RGBAS[i % len(MEAN_RGBAS)])
-        for s, sensor in enumerate(world.spec.sensors):
-            for b, ball in enumerate(sensor.balls):
+        for s, balls in enumerate(world.sensors):
+            for b, ball in enumerate(balls):
                 meshcat.SetObject(f"/arm_belief/sensors/{s}/{b}", Sphere(ball.radius_m),
                                   SENSOR_ON_RGBA)
         self.DeclarePeriodicPublishEvent(period_s, 0.0, self._draw)
@@ -205,8 +205,8 @@ class ArmBeliefDrawer(LeafSystem):
         centres, _ = self._world.chain.centers(np.array(self._truth.Eval(context))[None])
         lit = self._contact.Eval(context) > 0.5
         index = 0
-        for s, sensor in enumerate(self._world.spec.sensors):
-            for b in range(len(sensor.balls)):
+        for s, balls in enumerate(self._world.sensors):
+            for b in range(len(balls)):
                 path = f"/arm_belief/sensors/{s}/{b}"
                 meshcat.SetTransform(path, RigidTransform(centres[0, index]), t)
                 meshcat.SetProperty(path, "visible", bool(lit[s]), t)

@@ -34,11 +34,17 @@ EPS_PROJ_M = 0.001
 """Accept a projected sample when every active sensor is within this of the surface (m);
 the thesis gives no value: 1 mm, the contact tolerance of the arm files."""
 
-MAX_ITERATIONS = {"gd": 200, "lm": 30}
+MAX_ITERATIONS = {"gd": 200, "lm": 40}
 """Iteration budgets: gradient descent converges linearly, LM quadratically near a root."""
 
-LM_DAMPING = 1e-8
-"""mu (m^2): keeps ``J J^T`` invertible where two active sensors' rows are parallel."""
+LM_DAMPING = 1e-4
+"""mu (m^2): keeps ``J J^T`` invertible where two active sensors' rows are (nearly)
+parallel; without it a step along an ill-conditioned direction can throw a seed far from
+where it started (a singular value of 1 cm/rad is damped by half)."""
+
+MAX_STEP_RAD = 0.05
+"""Trust region of one root-finding step (rad): a seed moves to the manifold in small
+steps rather than one linearised jump."""
 
 
 @dataclass(frozen=True)
@@ -100,5 +106,7 @@ def project(world: ArmWorld, seeds: np.ndarray, active: np.ndarray, *, method: s
         else:
             A = np.einsum("kad,kbd->kab", J, J) + LM_DAMPING * eye
             step = -np.einsum("kad,ka->kd", J, np.linalg.solve(A, f[..., None])[..., 0])
+        norm = np.linalg.norm(step, axis=1, keepdims=True)
+        step *= np.minimum(1.0, MAX_STEP_RAD / np.maximum(norm, 1e-12))
         q[index] = world.normalise(q[index] + step)
     return Projection(q, ~running, iterations)

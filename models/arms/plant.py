@@ -139,9 +139,11 @@ def _build_herb(spec: ArmSpec) -> ArmModel:
 def geometry_balls(model: ArmModel, links: tuple[str, ...]) -> tuple[Ball, ...]:
     """Balls covering the collision geometry of ``links``, in each link's frame.
 
-    A sphere is itself; a cylinder, balls of its radius every radius along its axis; a
-    box, balls of half its middle dimension every such radius along its longest one (so a
-    thin plate is covered with its thickness overestimated, which errs towards contact).
+    A sphere is itself; a cylinder, balls of its radius along its axis; a box, balls that
+    circumscribe its cross-section (radius half the diagonal of its two smaller
+    dimensions) along its longest dimension. Balls are spaced at most one radius apart,
+    the end ones half a radius inside the ends: the cover is a little larger than the
+    geometry across and a little shorter at the corners, so it errs towards contact.
 
     Raises:
         ValueError: a geometry of another shape.
@@ -161,7 +163,7 @@ def geometry_balls(model: ArmModel, links: tuple[str, ...]) -> tuple[Ball, ...]:
             elif isinstance(shape, Box):
                 size = np.array(shape.size())
                 order = np.argsort(size)
-                radius = size[order[1]] / 2
+                radius = float(np.hypot(size[order[0]], size[order[1]]) / 2)
                 local = []
                 for z in _along(size[order[2]], radius):
                     point = np.zeros(3)
@@ -177,7 +179,8 @@ def geometry_balls(model: ArmModel, links: tuple[str, ...]) -> tuple[Ball, ...]:
 
 
 def _along(length: float, radius: float) -> np.ndarray:
-    """Centres every ``radius`` along a segment of ``length``, the ends' balls inside it."""
-    half = max(length / 2 - radius, 0.0)
+    """Centres at most ``radius`` apart along a segment of ``length``, the end ones half a
+    radius inside its ends."""
+    half = max(length / 2 - radius / 2, 0.0)
     count = int(np.ceil(2 * half / radius)) + 1 if half > 0 else 1
     return np.linspace(-half, half, count)

@@ -12,7 +12,9 @@ An arm file (``models/assets/arms/<name>.yaml`` or any path) has a ``kind``:
 - ``herb``: HERB's WAM and BarrettHand in a HERB scene (``scene``: a scene name or path;
   its obstacles and table are the environment, its movable object is left out); sensors
   and body balls are listed per link (``sensors: [{name, balls: [{link, center_m,
-  radius_m}]}]``, ``body: [...]``), in the link's own frame; ``body_links`` names links
+  radius_m}]}]``, or ``links: [...]`` to cover those links' collision geometry with
+  balls, as the tactile patches are), ``body: [...]``), in the link's own frame;
+  ``body_links`` names links
   whose Drake collision geometry is covered by balls automatically
   (:func:`models.arms.plant.geometry_balls`), so the arm the estimator models has the
   extent of the arm the physics simulates.
@@ -60,10 +62,12 @@ class Ball:
 @dataclass(frozen=True)
 class Sensor:
     """A binary contact sensor: a union of balls on the robot's surface (thesis sec. 5.3:
-    ``G_s,i(q) = U_j B(c_ij(q), r_ij)``)."""
+    ``G_s,i(q) = U_j B(c_ij(q), r_ij)``), listed, or covering the collision geometry of
+    ``links`` (resolved against the plant: :func:`models.arms.plant.geometry_balls`)."""
 
     name: str
     balls: tuple[Ball, ...]
+    links: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -306,11 +310,12 @@ def _ball(item: Fields) -> Ball:
 
 def _herb_sensor(item: Fields, index: int) -> Sensor:
     name = item.string("name", f"s{index}")
-    balls = tuple(_ball(b) for b in item.items("balls"))
-    if not balls:
-        raise item.error("balls", "a sensor needs at least one ball")
+    balls = tuple(_ball(b) for b in item.items("balls", []))
+    links = tuple(item.string_list("links", ()))
+    if not balls and not links:
+        raise item.error("balls", "a sensor needs balls or links")
     item.done()
-    return Sensor(name, balls)
+    return Sensor(name, balls, links)
 
 
 def check_links(spec: ArmSpec, link_names: set[str]) -> None:
@@ -319,10 +324,12 @@ def check_links(spec: ArmSpec, link_names: set[str]) -> None:
     Raises:
         ConfigError: naming the arm file, the sensor or body ball and the known links.
     """
-    for link in spec.body_links:
-        if link not in link_names:
-            raise ConfigError(spec.source, "body_links", f"unknown link {link!r}; the "
-                              f"robot's links: {', '.join(sorted(link_names))}")
+    for label, links in [("body_links", spec.body_links)] + [
+            (f"sensors[{s.name}].links", s.links) for s in spec.sensors]:
+        for link in links:
+            if link not in link_names:
+                raise ConfigError(spec.source, label, f"unknown link {link!r}; the "
+                                  f"robot's links: {', '.join(sorted(link_names))}")
     for label, balls in [(f"sensors[{s.name}]", s.balls) for s in spec.sensors] + [
             ("body", spec.body)]:
         for ball in balls:

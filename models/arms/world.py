@@ -63,7 +63,7 @@ that follow the contact normals, not by one linearised jump that can land anywhe
 FREE_TOLERANCE_M = 1e-5
 """The projection out of penetration stops when no ball is deeper than this (m)."""
 
-DAMPING = 1e-6
+DAMPING = 1e-2
 """Levenberg damping (m^2) of the projection's joint-space normal equations."""
 
 
@@ -95,6 +95,11 @@ class ArmWorld:
     Args:
         spec: the arm, its sensors, world and noise.
         process_noise_radius_rad: the filter's per-step motion noise (rad).
+
+    Attributes:
+        sensors: each sensor's balls, listed or covering its links' geometry.
+        balls: every ball, the sensors' (in sensor order) then the body's.
+        sensor_of_ball: (B,) the sensor each ball belongs to, -1 for the body.
     """
 
     def __init__(self, spec: ArmSpec, *, process_noise_radius_rad: float = 0.01):
@@ -112,12 +117,13 @@ class ArmWorld:
             diagram.scene_graph().GetMyContextFromRoot(self.context))
         self.environment = Environment.from_scene_graph(
             diagram.scene_graph().model_inspector(), query, self.model.environment_ids)
-        sensor_balls = [b for s in spec.sensors for b in s.balls]
+        self.sensors = tuple(s.balls + geometry_balls(self.model, s.links)
+                             for s in spec.sensors)
         body = spec.body + geometry_balls(self.model, spec.body_links)
-        self.balls = tuple(sensor_balls) + body
+        self.balls = tuple(b for balls in self.sensors for b in balls) + body
         self.chain = BallChain(plant, self.plant_context, self.model.joints, self.balls)
         self.sensor_of_ball = np.concatenate(
-            [np.full(len(s.balls), i) for i, s in enumerate(spec.sensors)]
+            [np.full(len(balls), i) for i, balls in enumerate(self.sensors)]
             + [np.full(len(body), -1)]).astype(int)
         self.dof = spec.dof
         self.sensor_count = len(spec.sensors)
