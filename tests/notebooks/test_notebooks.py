@@ -11,7 +11,7 @@ NOTEBOOKS = Path(__file__).resolve().parents[2] / "notebooks"
 
 @pytest.mark.notebook
 @pytest.mark.parametrize("name", ["mpf_walkthrough", "closed_loop_episode",
-                                  "latdespot_walkthrough"])
+                                  "latdespot_walkthrough", "configest_walkthrough"])
 def test_notebook_runs(name, monkeypatch):
     monkeypatch.setenv("CMANIP_NOTEBOOK_QUICK", "1")
     notebook = nbformat.read(NOTEBOOKS / f"{name}.ipynb", as_version=4)
