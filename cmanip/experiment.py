@@ -144,8 +144,9 @@ def _register_configest(studies) -> None:
     defaults = ConfigestSettings()
     ce = subcommand(studies, "configest", "thesis ch. 5: robot configuration estimation, "
                                           "CPF vs the MPF with implicit manifolds (Fig. 5.3)")
-    ce.add_argument("--arm", default="all",
-                    help=f"{', '.join(ARMS)}, all, or a path to an arm YAML")
+    _config_option(ce)
+    ce.add_argument("--arm", default=argparse.SUPPRESS,
+                    help=f"{', '.join(ARMS)}, all, or a path to an arm YAML (default: all)")
     setting_option(ce, "--trials", defaults.trials, "experiments per arm", type=int)
     setting_option(ce, "--seed", defaults.seed, "study seed", type=int)
     setting_option(ce, "--method", defaults.method, "projection root finder (gd: the "
@@ -155,7 +156,7 @@ def _register_configest(studies) -> None:
                    "MPF-Ball's r_b (rad)", type=float)
     workers_option(ce)
     ce.add_argument("--out", type=Path, required=True,
-                    help="output directory (summary.json, configest.png)")
+                    help="output directory (summary.json, configest.png, config.yaml)")
     ce.add_argument("--no-progress", action="store_true", help="no progress bars")
     ce.set_defaults(handler=_configest)
 
@@ -164,16 +165,16 @@ def _configest(args: argparse.Namespace) -> int:
     from experiments.configest_study import ARMS, ConfigestSettings, run_study
     from models.arms.spec import ArmSpec
 
-    arms = ARMS if args.arm == "all" else (args.arm,)
-    for arm in arms:  # a bad arm file fails before any trial runs
+    settings = overridden(load_config(ConfigestSettings, args.config), args, {
+        "trials": "trials", "seed": "seed", "method": "method",
+        "ball_radius": "ball_radius_rad"})
+    if "arm" in vars(args):
+        settings = replace(settings, arms=ARMS if args.arm == "all" else (args.arm,))
+    for arm in settings.arms:  # a bad arm file fails before any trial runs
         ArmSpec.load(arm)
-    given = vars(args)
-    settings = ConfigestSettings(arms=tuple(arms), **{
-        field: given[option] for option, field in [
-            ("trials", "trials"), ("seed", "seed"), ("method", "method"),
-            ("ball_radius", "ball_radius_rad")] if option in given})
     summary = run_study(settings, args.out, workers=args.workers,
                         progress=not args.no_progress)
+    write_config(settings, args.out)
     for arm, filters in summary["arms"].items():
         print(f"{arm}:")
         for kind, entry in filters.items():
@@ -186,7 +187,7 @@ def _configest(args: argparse.Namespace) -> int:
                   f"{entry['rmse_rad_final']:.3f} +- {entry['rmse_rad_final_ci95']:.3f} rad, "
                   f"{entry['update_ms_median']:.1f} ms/update{extra}")
     print("hypotheses:", json.dumps(summary["hypotheses"]))
-    print(f"wrote {args.out}/summary.json and {args.out}/configest.png")
+    print(f"wrote {args.out}/summary.json, configest.png and config.yaml")
     return 0
 
 

@@ -197,10 +197,6 @@ class ArmWorld:
         """(K,) would any sensor read contact at the states' actual configurations?"""
         return self.true_contacts(self.project_free(states)).any(axis=1)
 
-    def penetrating(self, q: np.ndarray) -> np.ndarray:
-        """(K,) how many balls are deeper than the tolerance inside an obstacle."""
-        return (self.ball_distances(q)[0] < -PENETRATION_TOLERANCE_M).sum(axis=1)
-
     # -- motion -----------------------------------------------------------------------
 
     def normalise(self, q: np.ndarray) -> np.ndarray:

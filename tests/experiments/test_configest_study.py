@@ -3,6 +3,8 @@
 import json
 
 from cmanip.cli import main
+from cmanip.config import load_config
+from experiments.configest_study import ConfigestSettings
 
 
 def test_configest_study_writes_the_summary_the_issue_asks_for(tmp_path):
@@ -19,6 +21,8 @@ def test_configest_study_writes_the_summary_the_issue_asks_for(tmp_path):
         assert ("projection_failure_rate" in entry) == (kind != "cpf")
     assert "H2_alike_at_2dof" in summary["hypotheses"]
     assert (out / "configest.png").stat().st_size > 10_000
+    replayed = load_config(ConfigestSettings, out / "config.yaml")  # replays the run
+    assert replayed == ConfigestSettings(arms=("2dof",), trials=2)
 
 
 def test_bad_arm_is_a_clear_error(tmp_path, capsys):
