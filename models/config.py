@@ -121,6 +121,15 @@ def resolve_asset(kind: str, name_or_path: str | Path) -> Path:
     )
 
 
+def relative_to_file(path: Path, name: str) -> str | Path:
+    """A name inside a data file that looks like a path (ends in .yaml or has a ``/``),
+    taken relative to that file's folder; a built-in name unchanged."""
+    if name.endswith((".yaml", ".yml")) or "/" in name:
+        candidate = Path(name)
+        return candidate if candidate.is_absolute() else path.parent / candidate
+    return name
+
+
 def builtin_names(kind: str) -> list[str]:
     """Names of the built-in data files of one kind (e.g. all scene names)."""
     return sorted(p.stem for p in (ASSETS_DIR / kind).glob("*.yaml"))

@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from models.config import ConfigError, Fields, resolve_asset
+from models.config import ConfigError, Fields, relative_to_file, resolve_asset
 
 KINDS = ("planar", "herb")
 OBSTACLE_SHAPES = ("sphere", "box")
@@ -184,7 +184,7 @@ class ArmSpec:
             dof, extra = len(links), {"links_m": links, "link_radius_m": radius,
                                       "obstacles": obstacles}
         else:
-            scene = _relative(path, fields.string("scene"))
+            scene = relative_to_file(path, fields.string("scene"))
             sensors = tuple(_herb_sensor(item, i) for i, item
                             in enumerate(fields.items("sensors")))
             body = tuple(_ball(item) for item in fields.items("body", []))
@@ -217,13 +217,6 @@ class ArmSpec:
             start_rad=start, trajectory=tuple(trajectory), source=str(path), **extra)
         fields.done()
         return spec
-
-
-def _relative(path: Path, name: str) -> str | Path:
-    if name.endswith((".yaml", ".yml")) or "/" in name:
-        candidate = Path(name)
-        return candidate if candidate.is_absolute() else path.parent / candidate
-    return name
 
 
 def _positive_list(fields: Fields, name: str, min_len: int, lo: float, hi: float

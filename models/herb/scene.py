@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from models.config import Fields, resolve_asset
+from models.config import Fields, relative_to_file, resolve_asset
 from models.contact import OBSTACLE_MATERIAL
 from models.objects import ObjectSpec
 
@@ -126,7 +126,7 @@ class SceneSpec:
         )
         table_f.done()
         object_f = fields.sub("object")
-        scene_object = _relative(path, object_f.string("name"))
+        scene_object = relative_to_file(path, object_f.string("name"))
         object_name = object_override or scene_object
         object_pose = PlanarPose.from_fields(object_f.sub("pose"))
         object_f.done()
@@ -163,11 +163,3 @@ class SceneSpec:
             if not table.contains(pose.x, pose.y):
                 raise fields.error(label, f"({pose.x}, {pose.y}) m is not on the table")
         return scene
-
-
-def _relative(scene_path: Path, name: str) -> str | Path:
-    """Object names that look like paths are relative to the scene file."""
-    if name.endswith((".yaml", ".yml")) or "/" in name:
-        candidate = Path(name)
-        return candidate if candidate.is_absolute() else scene_path.parent / candidate
-    return name
