@@ -24,6 +24,8 @@ def register(commands) -> None:
                                                 "sensors, offsets, commanded trajectory")
     setting_option(run, "--particles", defaults.particles, "particles per estimator",
                    type=int)
+    setting_option(run, "--tactile-error-rate", "the arm file's sensor_error_rate",
+                   "the tactile system's error rate during contact", type=float)
     setting_option(run, "--seed", defaults.seed, "seeds the offset, the sensor noise and "
                                                  "the estimators", type=int)
     run.add_argument("--out", type=Path, required=True,
@@ -46,7 +48,11 @@ def _run(args: argparse.Namespace) -> int:
 
     given = vars(args)
     settings = replace(ConfigestEpisodeSettings(), **{
-        key: given[key] for key in ("arm", "particles", "seed") if key in given})
+        key: given[key] for key in ("arm", "particles", "seed", "tactile_error_rate")
+        if key in given})
+    if settings.tactile_error_rate is not None and not 0 <= settings.tactile_error_rate <= 1:
+        raise ValueError(f"--tactile-error-rate must be in [0, 1], got "
+                         f"{settings.tactile_error_rate}")
     spec = ArmSpec.load(settings.arm)  # a bad arm file fails before anything is built
     if spec.kind != "herb":
         raise ValueError(f"{spec.source}: the HERB episode needs a 'herb' arm, got "

@@ -55,6 +55,10 @@ class ConfigestEpisodeSettings:
         seconds_per_step: time per commanded step (s).
         estimator_period_s: how often encoders, tactile system and estimators update (s).
         process_noise_radius_rad: the estimators' motion noise per update (rad).
+        ball_radius_rad: MPF-Ball's r_b (None: three kernel bandwidths, thesis sec. 5.2).
+        tactile_error_rate: the tactile system's false-negative and in-contact
+            false-positive rate (None: the arm file's ``sensor_error_rate``, which is also
+            what the estimators assume).
         seed: seeds the offset, the encoder and tactile noise and the estimators.
         sim: the plant's time step and contact approximation.
     """
@@ -67,6 +71,8 @@ class ConfigestEpisodeSettings:
     seconds_per_step: float = 0.05
     estimator_period_s: float = 0.05
     process_noise_radius_rad: float = 0.01
+    ball_radius_rad: float | None = None
+    tactile_error_rate: float | None = None
     seed: int = 0
     sim: SimulationConfig = field(default_factory=SimulationConfig)
 
@@ -101,8 +107,11 @@ def run_configest_episode(settings: ConfigestEpisodeSettings, out: Path, *,
     builder.Connect(arm_command.get_output_port(), plant.get_desired_state_input_port(herb.wam))
     commanded = builder.AddSystem(TrajectorySource(trajectory))
     fingers = tuple(s.name for s in spec.sensors)
+    error = (spec.sensor_error_rate if settings.tactile_error_rate is None
+             else settings.tactile_error_rate)
+    noise = TactileNoise(false_negative_rate=error, false_positive_rate_in_contact=error)
     tactile = builder.AddSystem(TactileSensor(
-        layout, herb.hand.patch_geometry, noise=TactileNoise(), seed=settings.seed,
+        layout, herb.hand.patch_geometry, noise=noise, seed=settings.seed,
         period_s=period, groups=SensorGroups(fingers, tuple((f,) for f in fingers))))
     builder.Connect(plant.get_contact_results_output_port(), tactile.get_input_port())
     indices = np.array([plant.GetJointByName(f"wam_j{k + 1}", herb.wam).position_start()
@@ -121,7 +130,8 @@ def run_configest_episode(settings: ConfigestEpisodeSettings, out: Path, *,
         if kind == "cpf":
             filt, n = make_filter("cpf", world), settings.particles
         else:
-            filt = make_filter("mpf", world, ProjectionManifold(world, strategy="ball"),
+            filt = make_filter("mpf", world, ProjectionManifold(
+                world, strategy="ball", ball_radius_rad=settings.ball_radius_rad),
                                dual_particles=settings.dual_particles,
                                mixing_rate=settings.mixing_rate)
             n = settings.particles - settings.dual_particles

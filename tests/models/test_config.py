@@ -108,8 +108,8 @@ def test_not_yaml_and_not_a_mapping(tmp_path):
 
 
 def test_unknown_scene_name_lists_builtins():
-    with pytest.raises(ConfigError,
-                       match="built-in: closed_loop, configest_boxes, cul_de_sac, empty, left_obstacles"):
+    with pytest.raises(ConfigError, match="built-in: closed_loop, configest_boxes, "
+                                          "cul_de_sac, empty, left_obstacles"):
         SceneSpec.load("kitchen")
 
 
