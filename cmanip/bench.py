@@ -91,9 +91,10 @@ def _mpf(args: argparse.Namespace) -> int:
 def _configest(args: argparse.Namespace) -> int:
     from experiments.configest_bench import run_configest_bench
     from models.arms.spec import ArmSpec
+    from models.arms.world import ArmWorld
 
-    for arm in args.arm:  # a bad arm file fails before anything runs
-        ArmSpec.load(arm)
+    for arm in args.arm:  # a bad arm file (or link) fails before anything runs
+        ArmWorld(ArmSpec.load(arm))
     write_json(run_configest_bench(tuple(args.arm), seed=args.seed), args.json)
     return 0
 

@@ -164,14 +164,15 @@ def _register_configest(studies) -> None:
 def _configest(args: argparse.Namespace) -> int:
     from experiments.configest_study import ARMS, ConfigestSettings, run_study
     from models.arms.spec import ArmSpec
+    from models.arms.world import ArmWorld
 
     settings = overridden(load_config(ConfigestSettings, args.config), args, {
         "trials": "trials", "seed": "seed", "method": "method",
         "ball_radius": "ball_radius_rad"})
     if "arm" in vars(args):
         settings = replace(settings, arms=ARMS if args.arm == "all" else (args.arm,))
-    for arm in settings.arms:  # a bad arm file fails before any trial runs
-        ArmSpec.load(arm)
+    for arm in settings.arms:  # a bad arm file (or link) fails before any trial runs
+        ArmWorld(ArmSpec.load(arm))
     summary = run_study(settings, args.out, workers=args.workers,
                         progress=not args.no_progress)
     write_config(settings, args.out)

@@ -17,9 +17,7 @@ import time
 
 import numpy as np
 
-from estimation.configuration.manifold import ProjectionManifold
 from estimation.configuration.projection import project
-from estimation.particles.belief import ParticleBelief
 from experiments.configest_study import ConfigestSettings, arm_world, run_filter
 from models.arms.environment import drake_signed_distance
 
@@ -31,39 +29,23 @@ def _timed(fn, *args, **kwargs):
 
 
 def bench_arm(arm: str, seed: int) -> dict:
-    """The figures of one arm (times in ms unless named otherwise)."""
+    """The figures of one arm (times in ms unless named otherwise).
+
+    Raises:
+        ValueError: the arm file's trajectory never touches anything.
+    """
     settings = ConfigestSettings(arms=(arm,))
     world = arm_world(arm, settings.process_noise_radius_rad)
     trajectory = world.simulate(rng=np.random.default_rng((seed, 0)))
-    _, cpf_ms, _ = run_filter(world, trajectory, "cpf", settings,
-                              rng=np.random.default_rng((seed, 1)))
-    # MPF-Ball, with the projection's own time measured inside the run
-    manifold = ProjectionManifold(world, strategy="ball", method=settings.method)
-    sample, spent = manifold.sample, []
-
-    def timed_sample(*args, **kwargs):
-        out, seconds = _timed(sample, *args, **kwargs)
-        spent.append(seconds)
-        return out
-
-    manifold.sample = timed_sample
-    from estimation.particles.factory import make_filter
-
-    filt = make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
-                       mixing_rate=settings.mixing_rate)
-    rng = np.random.default_rng((seed, 2))
-    belief = ParticleBelief.uniform(world.initial_belief_states(
-        trajectory.encoders[0], settings.particles - settings.dual_particles, rng=rng),
-        world.angular)
-    all_ms, contact_ms = [], []
-    for t, action in enumerate(trajectory.commanded):
-        (belief, _), seconds = _timed(filt.update, belief, action,
-                                      trajectory.contacts[t + 1], rng=rng)
-        all_ms.append(seconds * 1e3)
-        if trajectory.contacts[t + 1].any():
-            contact_ms.append(seconds * 1e3)
-    projection_ms = np.array(spent) * 1e3
-    # the root finders on the same seeds: the predicted belief at the first contact
+    touching = trajectory.contacts[1:].any(axis=1)
+    if not touching.any():
+        raise ValueError(f"{arm}: the commanded trajectory never touches anything")
+    cpf = run_filter(world, trajectory, "cpf", settings, rng=np.random.default_rng((seed, 1)))
+    ball = run_filter(world, trajectory, "mpf-ball", settings,
+                      rng=np.random.default_rng((seed, 2)))
+    stats = ball.projection
+    contact_ms = ball.update_ms[touching]
+    # the root finders on the same seeds: the truth at the first touch, perturbed by 0.1 rad
     first = int(np.flatnonzero(trajectory.contacts.any(axis=1))[0])
     seeds = world.normalise(np.array(trajectory.q_true[first])[None] + np.random.default_rng(
         (seed, 3)).normal(0.0, 0.1, (250, world.dof)))
@@ -77,9 +59,8 @@ def bench_arm(arm: str, seed: int) -> dict:
     # signed distance: Drake per point against the compiled batch
     centres, _ = world.chain.centers(seeds[:20])
     points = centres.reshape(-1, 3)
-    plant = world.model.diagram.plant()
     scene_graph = world.model.diagram.scene_graph()
-    plant.SetPositions(world.plant_context, world.model.q_default)
+    world.model.diagram.plant().SetPositions(world.plant_context, world.model.q_default)
     query = scene_graph.get_query_output_port().Eval(
         scene_graph.GetMyContextFromRoot(world.context))
     ids = set(world.model.environment_ids)
@@ -87,20 +68,20 @@ def bench_arm(arm: str, seed: int) -> dict:
     world.environment.signed_distance(points)  # compiled before timing
     _, batch_s = _timed(world.environment.signed_distance, points)
     return {
-        "cpf_update_ms": cpf_ms,
-        "mpf_ball_update_ms": float(np.median(all_ms)),
-        "mpf_ball_contact_update_ms": float(np.median(contact_ms)) if contact_ms else None,
-        "mpf_ball_contact_update_ms_p90": (float(np.percentile(contact_ms, 90))
-                                           if contact_ms else None),
-        "projection_share_of_contact_updates": (float(projection_ms.sum() / np.sum(
-            contact_ms)) if contact_ms else None),
-        "projection_ms_per_seed": (float(projection_ms.sum() / max(manifold.stats.seeds, 1))),
-        "projection_failure_rate": manifold.stats.failure_rate,
+        "cpf_update_ms": float(np.median(cpf.update_ms)),
+        "mpf_ball_update_ms": float(np.median(ball.update_ms)),
+        "mpf_ball_contact_update_ms": float(np.median(contact_ms)),
+        "mpf_ball_contact_update_ms_p90": float(np.percentile(contact_ms, 90)),
+        "projection_share_of_contact_updates": float(stats.seconds * 1e3 / contact_ms.sum()),
+        "projection_ms_per_seed": float(stats.seconds * 1e3 / max(stats.seeds, 1)),
+        "projection_iterations_per_seed": stats.iterations / max(stats.seeds, 1),
+        "projection_failure_rate": stats.failure_rate,
+        "projection_short_draws": stats.short_draws,
         "root_finders": finders,
         "drake_signed_distance_us_per_point": drake_s * 1e6 / len(points),
         "compiled_signed_distance_us_per_point": batch_s * 1e6 / len(points),
         "signed_distance_speedup": drake_s / batch_s,
-        "updates": len(all_ms), "contact_updates": len(contact_ms),
+        "updates": len(ball.update_ms), "contact_updates": int(touching.sum()),
     }
 
 
@@ -111,8 +92,8 @@ def run_configest_bench(arms: tuple[str, ...], *, seed: int = 0) -> dict:
         report[arm] = entry = bench_arm(arm, seed)
         print(f"{arm}: CPF {entry['cpf_update_ms']:.1f} ms/update, MPF-Ball "
               f"{entry['mpf_ball_update_ms']:.1f} ms/update "
-              f"({entry['mpf_ball_contact_update_ms'] or 0:.1f} ms with contact, "
-              f"{(entry['projection_share_of_contact_updates'] or 0):.0%} projecting); "
+              f"({entry['mpf_ball_contact_update_ms']:.1f} ms with contact, "
+              f"{entry['projection_share_of_contact_updates']:.0%} projecting); "
               f"signed distance {entry['drake_signed_distance_us_per_point']:.1f} us/point "
               f"in Drake, {entry['compiled_signed_distance_us_per_point']:.2f} compiled; "
               f"GD {entry['root_finders']['gd']['ms_per_seed']:.2f} ms/seed "

@@ -10,6 +10,8 @@ from experiments.plotting import plt, save_figure
 
 COLOURS = {"cpf": "tab:gray", "mpf-uniform": "tab:orange", "mpf-particle": "tab:blue",
            "mpf-ball": "tab:green", "mpf-explicit": "tab:purple"}
+LABELS = {"cpf": "CPF", "mpf-uniform": "MPF-Uniform", "mpf-particle": "MPF-Particle",
+          "mpf-ball": "MPF-Ball", "mpf-explicit": "MPF-Explicit"}
 TITLES = {"2dof": "2-DOF arm, point obstacle", "3dof": "3-DOF arm, unstructured obstacle",
           "wam": "7-DOF WAM among boxes"}
 
@@ -26,10 +28,7 @@ def plot_rmse(arms: dict, path: Path) -> str:
         for kind, entry in filters.items():
             mean, ci = np.array(entry["curve_rad"]), np.array(entry["curve_rad_ci95"])
             t = np.arange(1, len(mean) + 1)
-            ax.plot(t, mean, color=COLOURS.get(kind), label=kind.upper().replace(
-                "MPF-", "MPF-").replace("UNIFORM", "Uniform").replace(
-                "PARTICLE", "Particle").replace("BALL", "Ball").replace(
-                "EXPLICIT", "Explicit"))
+            ax.plot(t, mean, color=COLOURS.get(kind), label=LABELS.get(kind, kind))
             ax.fill_between(t, mean - ci, mean + ci, color=COLOURS.get(kind), alpha=0.2)
         ax.set_title(TITLES.get(arm, arm))
         ax.set_xlabel("time step")

@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import multiprocessing
 import time
+import zlib
 from dataclasses import asdict, dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -28,8 +29,13 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from estimation.configuration.belief import configuration_belief
-from estimation.configuration.manifold import ExplicitTwoLinkManifold, ProjectionManifold
+from estimation.configuration.belief import joint_rmse
+from estimation.configuration.manifold import (
+    ExplicitTwoLinkManifold,
+    ProjectionManifold,
+    ProjectionStats,
+)
+from estimation.configuration.projection import METHODS
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.factory import make_filter
 from experiments.statistics import half_width
@@ -72,6 +78,15 @@ class ConfigestSettings:
             raise ValueError(f"trials must be >= 2 (for intervals), got {self.trials}")
         if not 0 < self.dual_particles < self.particles:
             raise ValueError("dual_particles must be in (0, particles)")
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, got "
+                             f"{self.method!r}")
+        if not 0.0 <= self.mixing_rate <= 1.0:
+            raise ValueError(f"mixing_rate must be in [0, 1], got {self.mixing_rate}")
+        if self.process_noise_radius_rad < 0:
+            raise ValueError("process_noise_radius_rad must be >= 0")
+        if self.ball_radius_rad is not None and not self.ball_radius_rad > 0:
+            raise ValueError(f"ball_radius_rad must be > 0, got {self.ball_radius_rad}")
 
 
 def filters_for(arm: str) -> tuple[str, ...]:
@@ -93,7 +108,7 @@ class TrialResult:
         rmse_rad: {filter: (T,) RMSE}.
         update_ms: {filter: median update time (ms)}.
         projection: {filter: (seeds, failures)} for the MPF variants.
-        contact_steps: steps with any contact reading.
+        contact_steps: updates with any contact reading.
     """
 
     rmse_rad: dict[str, np.ndarray]
@@ -102,14 +117,24 @@ class TrialResult:
     contact_steps: int
 
 
-def run_filter(world: ArmWorld, trajectory, kind: str, settings: ConfigestSettings, *,
-               rng: np.random.Generator) -> tuple[np.ndarray, float, tuple[int, int] | None]:
+@dataclass(frozen=True)
+class FilterRun:
     """One filter along one experiment.
 
-    Returns:
-        (RMSE after each update (T,) rad, median update time ms, (seeds, failures) of the
-        projection or None for the CPF).
+    Attributes:
+        rmse_rad: (T,) joint-space RMSE after each update (rad).
+        update_ms: (T,) wall time of each update (ms).
+        projection: the manifold's counts (None for the CPF).
     """
+
+    rmse_rad: np.ndarray
+    update_ms: np.ndarray
+    projection: ProjectionStats | None
+
+
+def run_filter(world: ArmWorld, trajectory, kind: str, settings: ConfigestSettings, *,
+               rng: np.random.Generator) -> FilterRun:
+    """Filter ``kind`` (one of :data:`FILTERS`) along one simulated experiment."""
     manifold = None
     if kind == "cpf":
         filt = make_filter("cpf", world)
@@ -129,33 +154,41 @@ def run_filter(world: ArmWorld, trajectory, kind: str, settings: ConfigestSettin
         start = time.perf_counter()
         belief, _ = filt.update(belief, action, trajectory.contacts[t + 1], rng=rng)
         times.append(time.perf_counter() - start)
-        rmse.append(configuration_belief(world, belief).rmse(trajectory.q_true[t + 1])[1])
-    stats = None if manifold is None else (manifold.stats.seeds, manifold.stats.failures)
-    return np.array(rmse), float(np.median(times) * 1e3), stats
+        rmse.append(joint_rmse(world, belief, trajectory.q_true[t + 1]))
+    return FilterRun(np.array(rmse), np.array(times) * 1e3,
+                     None if manifold is None else manifold.stats)
 
 
-def run_trial(arm: str, arm_index: int, trial: int, settings: ConfigestSettings
-              ) -> TrialResult:
-    """Trial ``trial`` of ``arm``: one experiment, every filter on it."""
+def arm_key(arm: str) -> int:
+    """A seed component per arm that does not depend on which arms a study runs: the
+    built-in arm's index, or a checksum of another file's name."""
+    return ARMS.index(arm) if arm in ARMS else zlib.crc32(str(arm).encode())
+
+
+def run_trial(arm: str, trial: int, settings: ConfigestSettings) -> TrialResult:
+    """Trial ``trial`` of ``arm``: one experiment, every filter on it (seeded from
+    ``(seed, arm_key(arm), trial)``)."""
     world = arm_world(arm, settings.process_noise_radius_rad)
-    trajectory = world.simulate(rng=np.random.default_rng((settings.seed, arm_index, trial)))
+    key = arm_key(arm)
+    trajectory = world.simulate(rng=np.random.default_rng((settings.seed, key, trial)))
     rmse, ms, projection = {}, {}, {}
     for f, kind in enumerate(filters_for(arm)):
-        rng = np.random.default_rng((settings.seed, arm_index, trial, 1 + f))
-        rmse[kind], ms[kind], stats = run_filter(world, trajectory, kind, settings, rng=rng)
-        if stats is not None:
-            projection[kind] = stats
-    return TrialResult(rmse, ms, projection, int(trajectory.contacts.any(axis=1).sum()))
+        rng = np.random.default_rng((settings.seed, key, trial, 1 + f))
+        run = run_filter(world, trajectory, kind, settings, rng=rng)
+        rmse[kind], ms[kind] = run.rmse_rad, float(np.median(run.update_ms))
+        if run.projection is not None:
+            projection[kind] = (run.projection.seeds, run.projection.failures)
+    return TrialResult(rmse, ms, projection, int(trajectory.contacts[1:].any(axis=1).sum()))
 
 
 def _job(job):
     return run_trial(*job)
 
 
-def run_arm(arm: str, arm_index: int, settings: ConfigestSettings, workers: int,
-            progress: bool) -> list[TrialResult]:
+def run_arm(arm: str, settings: ConfigestSettings, workers: int, progress: bool
+            ) -> list[TrialResult]:
     """Every trial of one arm, in ``workers`` spawned processes; results in trial order."""
-    jobs = [(arm, arm_index, j, settings) for j in range(settings.trials)]
+    jobs = [(arm, j, settings) for j in range(settings.trials)]
     bar = tqdm(total=len(jobs), desc=f"configest {arm}", unit="trial", disable=not progress)
     results = []
     if workers <= 1:
@@ -239,8 +272,8 @@ def run_study(settings: ConfigestSettings, out: Path, *, workers: int = 1,
 
     out.mkdir(parents=True, exist_ok=True)
     arms = {}
-    for index, arm in enumerate(settings.arms):
-        results = run_arm(arm, index, settings, workers, progress)
+    for arm in settings.arms:
+        results = run_arm(arm, settings, workers, progress)
         arms[arm] = summarise_arm(arm, results)
         arms[arm]["contact_steps_mean"] = float(np.mean([r.contact_steps for r in results]))
     filters = {a: {k: v for k, v in f.items() if isinstance(v, dict)} for a, f in arms.items()}

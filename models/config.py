@@ -32,8 +32,13 @@ class ConfigError(ValueError):
     def __init__(self, source: str, field: str, message: str):
         self.source = source
         self.field = field
+        self.message = message
         where = f"{source}: field '{field}'" if field else f"{source}"
         super().__init__(f"{where}: {message}")
+
+    def __reduce__(self):
+        """Rebuilt from its three parts, so it crosses a process pool intact."""
+        return ConfigError, (self.source, self.field, self.message)
 
 
 def load_yaml(path: Path) -> dict[str, Any]:

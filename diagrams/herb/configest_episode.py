@@ -41,6 +41,9 @@ from models.pose import wrap_angle
 
 ESTIMATORS = ("cpf", "mpf-ball")
 
+OFFSET_STREAM = 3
+"""The encoder offset is drawn from ``(seed, 3)``, a stream no sensor draws from."""
+
 
 @dataclass(frozen=True)
 class ConfigestEpisodeSettings:
@@ -97,8 +100,8 @@ def run_configest_episode(settings: ConfigestEpisodeSettings, out: Path, *,
     scene = SceneSpec.load(spec.scene)
     layout = TactileLayout.load(settings.layout)
     period = settings.estimator_period_s
-    rng = np.random.default_rng([settings.seed, 0])
-    offset = rng.normal(0.0, spec.offset_sd_rad, spec.dof)
+    offset = np.random.default_rng([settings.seed, OFFSET_STREAM]).normal(
+        0.0, spec.offset_sd_rad, spec.dof)
 
     builder = DiagramBuilder()
     plant, scene_graph, herb = add_herb_plant(builder, scene, layout=layout, sim=settings.sim)
@@ -107,6 +110,9 @@ def run_configest_episode(settings: ConfigestEpisodeSettings, out: Path, *,
     builder.Connect(arm_command.get_output_port(), plant.get_desired_state_input_port(herb.wam))
     commanded = builder.AddSystem(TrajectorySource(trajectory))
     fingers = tuple(s.name for s in spec.sensors)
+    if not set(fingers) <= set(layout.fingers):
+        raise ValueError(f"{spec.source}: the episode's sensors are the tactile system's "
+                         f"fingers ({', '.join(layout.fingers)}), got {', '.join(fingers)}")
     error = (spec.sensor_error_rate if settings.tactile_error_rate is None
              else settings.tactile_error_rate)
     noise = TactileNoise(false_negative_rate=error, false_positive_rate_in_contact=error)

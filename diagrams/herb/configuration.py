@@ -19,6 +19,10 @@ from estimation.configuration.belief import configuration_belief
 from estimation.particles.belief import ParticleBelief
 from models.arms.world import ArmWorld, ball_points
 
+ENCODER_STREAM = 2
+"""The encoders' noise is drawn from ``(seed, step, 2)``: a stream of its own, apart from the
+tactile system's ``(seed, step)`` and ``(seed, step, 1)`` under the same seed."""
+
 
 class Encoders(LeafSystem):
     """Joint encoders before a cable transmission: ``o_q = q + dq + eps`` (thesis
@@ -49,7 +53,7 @@ class Encoders(LeafSystem):
     def _sample(self, context, discrete_state) -> EventStatus:
         q = self._state_port.Eval(context)[self._indices]
         step = int(round(context.get_time() / self._period))
-        u = np.random.default_rng([self._seed, step]).random((1, len(q) + 1))
+        u = np.random.default_rng([self._seed, step, ENCODER_STREAM]).random((1, len(q) + 1))
         discrete_state.set_value(q + self._offset + ball_points(u, self._radius)[0])
         return EventStatus.Succeeded()
 
@@ -81,7 +85,8 @@ class ConfigurationEstimator(LeafSystem):
         commanded: (dof,) the commanded configuration (rad).
         contact: (S,) sensor readings (> 0.5 is contact), in the arm file's sensor order.
     Output ports:
-        belief: the :class:`ParticleBelief` (abstract; empty before the first update).
+        belief: the :class:`ParticleBelief` (abstract; before the first update, a
+            one-particle placeholder at the zero configuration).
         mean: (dof,) the weighted mean of its configurations (rad; the encoders' reading
             before the first update).
 
@@ -196,7 +201,7 @@ class ArmBeliefDrawer(LeafSystem):
     def _draw(self, context) -> EventStatus:
         t, meshcat = context.get_time(), self._meshcat
         belief: ParticleBelief = self._belief.Eval(context)
-        states = np.asarray(belief.states)
+        states = np.asarray(configuration_belief(self._world, belief).states)
         if len(states) > 1:
             self._place(self._ghosts,
                         states[np.linspace(0, len(states) - 1, self._count).astype(int)], t)

@@ -28,11 +28,12 @@ Every draw counts its seeds and failures in :attr:`ProjectionManifold.stats`.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimation.configuration.projection import EPS_PROJ_M, project
+from estimation.configuration.projection import EPS_PROJ_M, METHODS, project
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.kde import silverman_bandwidth
 from models.arms.world import ArmWorld, ball_points
@@ -54,6 +55,7 @@ class ProjectionStats:
         draws: calls to ``sample`` with contact.
         short_draws: draws that returned fewer samples than asked.
         iterations: total root-finding iterations.
+        seconds: wall time spent drawing (s).
     """
 
     seeds: int = 0
@@ -61,6 +63,7 @@ class ProjectionStats:
     draws: int = 0
     short_draws: int = 0
     iterations: int = 0
+    seconds: float = 0.0
 
     @property
     def failure_rate(self) -> float:
@@ -95,6 +98,11 @@ class ProjectionManifold:
                              f"{', '.join(STRATEGIES)}")
         if self.rounds < 1:
             raise ValueError(f"rounds must be >= 1, got {self.rounds}")
+        if self.method not in METHODS:
+            raise ValueError(f"unknown projection method {self.method!r}; choose from "
+                             f"{', '.join(METHODS)}")
+        if self.ball_radius_rad is not None and not self.ball_radius_rad > 0:
+            raise ValueError(f"ball_radius_rad must be > 0, got {self.ball_radius_rad}")
 
     def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator,
                predicted: ParticleBelief | None = None) -> np.ndarray:
@@ -109,6 +117,7 @@ class ProjectionManifold:
         if self.strategy != "uniform" and predicted is None:
             raise ValueError(f"{self.strategy} projection seeds from the predicted belief")
         self.stats.draws += 1
+        start = time.perf_counter()
         accepted = []
         for _ in range(self.rounds):
             seeds = self.seeds(n, predicted, rng=rng)
@@ -122,6 +131,7 @@ class ProjectionManifold:
                 break
         states = np.concatenate(accepted)[:n]
         self.stats.short_draws += int(len(states) < n)
+        self.stats.seconds += time.perf_counter() - start
         return states
 
     def seeds(self, n: int, predicted: ParticleBelief | None, *,

@@ -22,9 +22,9 @@ An arm file (``models/assets/arms/<name>.yaml`` or any path) has a ``kind``:
 Both kinds share the noise and the experiment: ``offset_sd_rad`` (the encoder offset's
 standard deviation per joint, Sigma_dq^(1/2) of sec. 5.4.1), ``proprio_noise_radius_rad``
 (r_q: encoder noise uniform in a ball), ``sensor_error_rate`` (per sensor and step while
-the arm touches anything, the probability that a reading is flipped; the thesis gives
+any sensor touches, the probability that a reading is flipped; the thesis gives
 none for ch. 5, we choose 0.001 by default), ``free_false_positive_rate`` (the probability
-of a contact reading while the arm touches nothing; default 0, the thesis' "perfectly
+of a contact reading while no sensor touches; default 0, the thesis' "perfectly
 discriminative" sensors of sec. 4.4.1), ``contact_tolerance_m`` (a sensor is active
 when its signed distance is at most this), ``start_rad`` (the true start configuration)
 and ``trajectory`` (commanded joint motion: ``[{to_rad: [...], steps: N}, ...]``, moved
@@ -117,9 +117,9 @@ class ArmSpec:
         offset_sd_rad: encoder offset standard deviation per joint (rad).
         proprio_noise_radius_rad: r_q, encoder noise radius (rad).
         sensor_error_rate: probability that a sensor's reading is flipped, per step, while
-            the arm touches anything.
+            any sensor touches.
         free_false_positive_rate: probability of a contact reading, per sensor and step,
-            while the arm touches nothing.
+            while no sensor touches.
         contact_tolerance_m: a sensor is active when its signed distance is at most this.
         start_rad: true start configuration (rad).
         trajectory: the commanded motion of the experiment.

@@ -26,8 +26,8 @@ filter needs some diffusion, and the authors' demo uses a 0.01 rad random walk).
 
 **Contact sensing** (sec. 3.3, eq. 5.3): sensor i is active when
 ``f_i(q) = min_j F(c_ij(q)) - r_ij <= contact_tolerance_m``; while the arm touches
-anything, each reading is flipped with probability ``sensor_error_rate``, and while it
-touches nothing, a reading is on with probability ``free_false_positive_rate`` (the
+any sensor touches, each reading is flipped with probability ``sensor_error_rate``, and
+while none touches, a reading is on with probability ``free_false_positive_rate`` (the
 thesis' model of sec. 4.4.1: "perfectly discriminative", wrong only during contact).
 The likelihood also counts each ball deeper than ``PENETRATION_TOLERANCE_M`` inside an
 obstacle as one contradicted reading: such a state
@@ -127,7 +127,9 @@ class ArmWorld:
             + [np.full(len(body), -1)]).astype(int)
         self.dof = spec.dof
         self.sensor_count = len(spec.sensors)
-        self.angular = tuple(range(self.dof))
+        # planar joints live on the circle; the WAM's are limited (an angle past +-pi is a
+        # different configuration, not the same one wrapped)
+        self.angular = tuple(range(self.dof)) if self.model.continuous else ()
         self.lower, self.upper = self.model.lower, self.model.upper
 
     # -- geometry ---------------------------------------------------------------------
@@ -170,24 +172,17 @@ class ArmWorld:
         sensors = np.arange(self.sensor_count) if sensors is None else np.asarray(sensors)
         balls = np.flatnonzero(np.isin(self.sensor_of_ball, sensors))
         d, g = self.ball_distances(q, gradient=gradient, balls=balls)
-        column = np.searchsorted(sensors, self.sensor_of_ball[balls])
-        out = np.full((len(q), len(sensors)), np.inf)
-        best = np.zeros((len(q), len(sensors)), dtype=int)
-        for b, s in enumerate(column):  # a few balls per sensor; vectorised over K
-            closer = d[:, b] < out[:, s]
-            out[:, s] = np.where(closer, d[:, b], out[:, s])
-            best[:, s] = np.where(closer, b, best[:, s])
+        out, best = _group_minimum(d, np.searchsorted(sensors, self.sensor_of_ball[balls]),
+                                   len(sensors))
         if not gradient:
             return out, None
         return out, np.take_along_axis(g, best[..., None], axis=1)
 
     def _sensor_minimum(self, d: np.ndarray) -> np.ndarray:
         """(K, S) each sensor's nearest ball, from all balls' distances (K, B)."""
-        out = np.full((len(d), self.sensor_count), np.inf)
-        for b in np.flatnonzero(self.sensor_of_ball >= 0):
-            s = self.sensor_of_ball[b]
-            out[:, s] = np.minimum(out[:, s], d[:, b])
-        return out
+        sensing = self.sensor_of_ball >= 0
+        return _group_minimum(d[:, sensing], self.sensor_of_ball[sensing],
+                              self.sensor_count)[0]
 
     def true_contacts(self, q: np.ndarray) -> np.ndarray:
         """(K, S) noise-free readings: f_i(q) <= contact tolerance."""
@@ -303,10 +298,26 @@ class ArmWorld:
         q_true = self.project_free(q_free)
         eps = ball_points(rng.random((len(q_true), self.dof + 1)),
                           self.spec.proprio_noise_radius_rad)
-        contacts = self.sample_observation(q_true, rng.random((len(q_true),
+        contacts = self.sample_observation(q_free, rng.random((len(q_true),
                                                                self.sensor_count)))
-        return ArmTrajectory(q_true, q_free, commanded, self.normalise(q_true + dq + eps),
+        encoders = q_true + dq + eps  # not clipped: the offset carries past the limits
+        return ArmTrajectory(q_true, q_free, commanded,
+                             wrap_angle(encoders) if self.model.continuous else encoders,
                              contacts, dq)
+
+
+def _group_minimum(d: np.ndarray, group: np.ndarray, groups: int
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Per row of ``d`` (K, B), the minimum over the columns of each group (``group`` (B,)
+    in [0, groups)) and the column that attains it: (K, groups), (K, groups). A loop over
+    the few columns, vectorised over the K rows."""
+    out = np.full((len(d), groups), np.inf)
+    best = np.zeros((len(d), groups), dtype=int)
+    for b, s in enumerate(group):
+        closer = d[:, b] < out[:, s]
+        out[:, s] = np.where(closer, d[:, b], out[:, s])
+        best[:, s] = np.where(closer, b, best[:, s])
+    return out, best
 
 
 def ball_points(u: np.ndarray, radius: float) -> np.ndarray:

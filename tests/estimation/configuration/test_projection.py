@@ -93,7 +93,8 @@ def test_the_mpf_finds_the_2dof_arm_more_often_than_the_cpf():
     for seed in range(4):
         run = w.simulate(rng=np.random.default_rng((seed, 0)))
         for kind in finals:
-            rmse, _, _ = run_filter(w, run, kind, settings, rng=np.random.default_rng(seed))
+            rmse = run_filter(w, run, kind, settings,
+                              rng=np.random.default_rng((seed, 1))).rmse_rad
             finals[kind].append(rmse[-1])
     assert np.mean(finals["mpf-ball"]) < np.mean(finals["cpf"]) - 0.5
     assert min(finals["mpf-ball"]) < 0.1  # on the truth when it finds it

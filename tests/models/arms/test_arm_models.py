@@ -53,17 +53,23 @@ def test_ball_kinematics_and_signed_distance_match_drake(arm):
 
 @pytest.mark.parametrize("arm", ["3dof", "wam"])
 def test_sensor_gradient_is_eq_5_4_and_matches_finite_differences(arm):
+    """The analytic gradient against central differences, wherever the field is smooth:
+    entries whose differences at two step sizes agree (the minimum over balls and
+    obstacles has kinks, where neither is the derivative)."""
     w = world(arm)
     q = _random_configurations(w, 4, seed=2)
-    f, grad = w.sensor_distances(q, gradient=True)
-    h = 1e-6
-    for j in range(w.dof):
+    _, grad = w.sensor_distances(q, gradient=True)
+
+    def central(j, h):
         step = np.zeros(w.dof)
         step[j] = h
-        numeric = (w.sensor_distances(q + step)[0] - w.sensor_distances(q - step)[0]) / (2 * h)
-        smooth = np.abs(numeric - grad[..., j]) < 1e-4  # away from the min's kinks
-        assert smooth.mean() > 0.95
-        np.testing.assert_allclose(grad[..., j][smooth], numeric[smooth], atol=1e-4)
+        return (w.sensor_distances(q + step)[0] - w.sensor_distances(q - step)[0]) / (2 * h)
+
+    for j in range(w.dof):
+        coarse, fine = central(j, 1e-5), central(j, 1e-6)
+        smooth = np.abs(coarse - fine) < 1e-7
+        assert smooth.mean() > 0.9
+        np.testing.assert_allclose(grad[..., j][smooth], fine[smooth], atol=1e-6)
 
 
 def test_projection_out_of_penetration_leaves_no_ball_inside():
