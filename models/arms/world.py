@@ -131,6 +131,7 @@ class ArmWorld:
         # different configuration, not the same one wrapped)
         self.angular = tuple(range(self.dof)) if self.model.continuous else ()
         self.lower, self.upper = self.model.lower, self.model.upper
+        self._last_projection: tuple | None = None
 
     # -- geometry ---------------------------------------------------------------------
 
@@ -210,8 +211,21 @@ class ArmWorld:
 
         Returns:
             (K, dof) configurations with no ball deeper than ``FREE_TOLERANCE_M`` where the
-            iterations reached it.
+            iterations reached it. The last answer is kept (read-only): a filter update asks
+            for the same predicted particles' projection in its likelihood and its
+            free-space test.
         """
+        q = np.asarray(q, dtype=float)
+        key = (q.shape, q.tobytes())
+        if self._last_projection is not None and self._last_projection[0] == key:
+            return self._last_projection[1]
+        projected = self._project_free(q)
+        projected.setflags(write=False)
+        self._last_projection = (key, projected)
+        return projected
+
+    def _project_free(self, q: np.ndarray) -> np.ndarray:
+        """:meth:`project_free` without the memo."""
         q = self.normalise(np.array(q, dtype=float))
         eye = np.eye(self.dof)[None]
         d, _ = self.ball_distances(q)
@@ -271,7 +285,10 @@ class ArmWorld:
     def sample_observation(self, states: np.ndarray, u: np.ndarray) -> np.ndarray:
         """(K, S) readings at the states' actual configurations: each flipped when ``u``
         (K, S) < e while any sensor touches; each on when ``u`` < f0 while none does."""
-        truth = self.true_contacts(self.project_free(states))
+        return self._readings(self.true_contacts(self.project_free(states)), u)
+
+    def _readings(self, truth: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """(K, S) readings from the noise-free contacts ``truth`` (K, S) and uniforms."""
         touching = truth.any(axis=1, keepdims=True)
         return np.where(touching, truth ^ (u < self.spec.sensor_error_rate),
                         u < self.spec.free_false_positive_rate)
@@ -298,8 +315,8 @@ class ArmWorld:
         q_true = self.project_free(q_free)
         eps = ball_points(rng.random((len(q_true), self.dof + 1)),
                           self.spec.proprio_noise_radius_rad)
-        contacts = self.sample_observation(q_free, rng.random((len(q_true),
-                                                               self.sensor_count)))
+        contacts = self._readings(self.true_contacts(q_true),
+                                  rng.random((len(q_true), self.sensor_count)))
         encoders = q_true + dq + eps  # not clipped: the offset carries past the limits
         return ArmTrajectory(q_true, q_free, commanded,
                              wrap_angle(encoders) if self.model.continuous else encoders,
