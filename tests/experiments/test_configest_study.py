@@ -42,3 +42,13 @@ def test_bench_reports_update_times_and_the_signed_distance_speedup(tmp_path):
     assert entry["cpf_update_ms"] > 0 and entry["mpf_ball_update_ms"] > 0
     assert set(entry["root_finders"]) == {"gd", "lm"}
     assert entry["signed_distance_speedup"] > 1
+
+
+def test_configest_run_refuses_bad_input_before_building(tmp_path, capsys):
+    assert main(["configest", "run", "--arm", "2dof", "--out", str(tmp_path)]) == 2
+    assert "needs a 'herb' arm" in capsys.readouterr().err
+    assert main(["configest", "run", "--tactile-error-rate", "2", "--out",
+                 str(tmp_path)]) == 2
+    assert "--tactile-error-rate must be in [0, 1]" in capsys.readouterr().err
+    assert main(["configest", "run", "--particles", "5", "--out", str(tmp_path)]) == 2
+    assert "--particles must exceed" in capsys.readouterr().err
