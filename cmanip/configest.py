@@ -26,6 +26,13 @@ def register(commands) -> None:
                    type=int)
     setting_option(run, "--tactile-error-rate", "the arm file's sensor_error_rate",
                    "the tactile system's error rate during contact", type=float)
+    setting_option(run, "--constraints", defaults.constraints,
+                   "what MPF-Ball's projected duals satisfy (active: eq. 5.1; full: also "
+                   "the other sensors clear and the body out of penetration)",
+                   choices=("active", "full"))
+    setting_option(run, "--dual-share", defaults.dual_share,
+                   "the MPF's mass for its duals (fixed: phi, Alg. 4.2; density: phi scaled "
+                   "by the prior density the duals see)", choices=("fixed", "density"))
     setting_option(run, "--seed", defaults.seed, "seeds the offset, the sensor noise and "
                                                  "the estimators", type=int)
     run.add_argument("--out", type=Path, required=True,
@@ -48,7 +55,8 @@ def _run(args: argparse.Namespace) -> int:
 
     given = vars(args)
     settings = replace(ConfigestEpisodeSettings(), **{
-        key: given[key] for key in ("arm", "particles", "seed", "tactile_error_rate")
+        key: given[key] for key in ("arm", "particles", "seed", "tactile_error_rate", "constraints",
+                                "dual_share")
         if key in given})
     if settings.tactile_error_rate is not None and not 0 <= settings.tactile_error_rate <= 1:
         raise ValueError(f"--tactile-error-rate must be in [0, 1], got "

@@ -154,6 +154,13 @@ def _register_configest(studies) -> None:
                    choices=("lm", "gd"))
     setting_option(ce, "--ball-radius", "three kernel bandwidths",
                    "MPF-Ball's r_b (rad)", type=float)
+    setting_option(ce, "--constraints", defaults.constraints,
+                   "what a projected dual satisfies (active: the lit sensors touch, eq. "
+                   "5.1; full: also every other sensor clear, the body out of penetration)",
+                   choices=("active", "full"))
+    setting_option(ce, "--dual-share", defaults.dual_share,
+                   "the MPF's mass for its duals (fixed: phi, Alg. 4.2; density: phi scaled "
+                   "by the posterior density the duals see)", choices=("fixed", "density"))
     workers_option(ce)
     ce.add_argument("--out", type=Path, required=True,
                     help="output directory (summary.json, configest.png, config.yaml)")
@@ -168,7 +175,8 @@ def _configest(args: argparse.Namespace) -> int:
 
     settings = overridden(load_config(ConfigestSettings, args.config), args, {
         "trials": "trials", "seed": "seed", "method": "method",
-        "ball_radius": "ball_radius_rad"})
+        "ball_radius": "ball_radius_rad", "constraints": "constraints",
+        "dual_share": "dual_share"})
     if "arm" in vars(args):
         settings = replace(settings, arms=ARMS if args.arm == "all" else (args.arm,))
     for arm in settings.arms:  # a bad arm file (or link) fails before any trial runs

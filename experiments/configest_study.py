@@ -35,9 +35,10 @@ from estimation.configuration.manifold import (
     ProjectionManifold,
     ProjectionStats,
 )
-from estimation.configuration.projection import METHODS
+from estimation.configuration.projection import CONSTRAINTS, METHODS
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.factory import make_filter
+from estimation.particles.filters import DUAL_SHARES
 from experiments.statistics import half_width
 from models.arms.spec import ArmSpec
 from models.arms.world import ArmWorld
@@ -61,6 +62,10 @@ class ConfigestSettings:
         process_noise_radius_rad: the filters' per-step motion noise (rad).
         method: the projection's root finder, ``lm`` or ``gd`` (thesis).
         ball_radius_rad: MPF-Ball's r_b (None: three kernel bandwidths, sec. 5.2).
+        constraints: the projection's constraint set, ``active`` (eq. 5.1) or ``full``
+            (see :mod:`estimation.configuration.projection`).
+        dual_share: the MPF's split between its sets, ``fixed`` (Alg. 4.2) or ``density``
+            (see :class:`estimation.particles.filters.ManifoldParticleFilter`).
     """
 
     arms: tuple[str, ...] = ARMS
@@ -72,6 +77,8 @@ class ConfigestSettings:
     process_noise_radius_rad: float = 0.01
     method: str = "lm"
     ball_radius_rad: float | None = None
+    constraints: str = "active"
+    dual_share: str = "fixed"
 
     def __post_init__(self):
         if self.trials < 2:
@@ -87,6 +94,12 @@ class ConfigestSettings:
             raise ValueError("process_noise_radius_rad must be >= 0")
         if self.ball_radius_rad is not None and not self.ball_radius_rad > 0:
             raise ValueError(f"ball_radius_rad must be > 0, got {self.ball_radius_rad}")
+        if self.constraints not in CONSTRAINTS:
+            raise ValueError(f"constraints must be one of {', '.join(CONSTRAINTS)}, got "
+                             f"{self.constraints!r}")
+        if self.dual_share not in DUAL_SHARES:
+            raise ValueError(f"dual_share must be one of {', '.join(DUAL_SHARES)}, got "
+                             f"{self.dual_share!r}")
 
 
 def filters_for(arm: str) -> tuple[str, ...]:
@@ -143,9 +156,11 @@ def run_filter(world: ArmWorld, trajectory, kind: str, settings: ConfigestSettin
         strategy = kind.split("-", 1)[1]
         manifold = (ExplicitTwoLinkManifold(world) if strategy == "explicit" else
                     ProjectionManifold(world, strategy=strategy, method=settings.method,
-                                       ball_radius_rad=settings.ball_radius_rad))
+                                       ball_radius_rad=settings.ball_radius_rad,
+                                       constraints=settings.constraints))
         filt = make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
-                           mixing_rate=settings.mixing_rate)
+                           mixing_rate=settings.mixing_rate,
+                           dual_share=settings.dual_share)
         n = settings.particles - settings.dual_particles
     belief = ParticleBelief.uniform(
         world.initial_belief_states(trajectory.encoders[0], n, rng=rng), world.angular)

@@ -59,6 +59,10 @@ class ConfigestEpisodeSettings:
         estimator_period_s: how often encoders, tactile system and estimators update (s).
         process_noise_radius_rad: the estimators' motion noise per update (rad).
         ball_radius_rad: MPF-Ball's r_b (None: three kernel bandwidths, thesis sec. 5.2).
+        constraints: what MPF-Ball's projected duals satisfy, ``active`` (eq. 5.1) or
+            ``full`` (:mod:`estimation.configuration.projection`).
+        dual_share: the MPF's split between its sets, ``fixed`` (Alg. 4.2) or ``density``
+            (:class:`estimation.particles.filters.ManifoldParticleFilter`).
         tactile_error_rate: the tactile system's false-negative and in-contact
             false-positive rate (None: the arm file's ``sensor_error_rate``, which is also
             what the estimators assume).
@@ -75,6 +79,8 @@ class ConfigestEpisodeSettings:
     estimator_period_s: float = 0.05
     process_noise_radius_rad: float = 0.01
     ball_radius_rad: float | None = None
+    constraints: str = "active"
+    dual_share: str = "fixed"
     tactile_error_rate: float | None = None
     seed: int = 0
     sim: SimulationConfig = field(default_factory=SimulationConfig)
@@ -137,9 +143,11 @@ def run_configest_episode(settings: ConfigestEpisodeSettings, out: Path, *,
             filt, n = make_filter("cpf", world), settings.particles
         else:
             filt = make_filter("mpf", world, ProjectionManifold(
-                world, strategy="ball", ball_radius_rad=settings.ball_radius_rad),
+                world, strategy="ball", ball_radius_rad=settings.ball_radius_rad,
+                constraints=settings.constraints),
                                dual_particles=settings.dual_particles,
-                               mixing_rate=settings.mixing_rate)
+                               mixing_rate=settings.mixing_rate,
+                               dual_share=settings.dual_share)
             n = settings.particles - settings.dual_particles
         system = builder.AddSystem(ConfigurationEstimator(
             world, filt, particles=n, seed=settings.seed * 100 + e + 1, period_s=period))

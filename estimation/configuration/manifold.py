@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimation.configuration.projection import EPS_PROJ_M, METHODS, project
+from estimation.configuration.projection import CONSTRAINTS, EPS_PROJ_M, METHODS, project
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.kde import silverman_bandwidth
 from models.arms.world import ArmWorld, ball_points
@@ -82,6 +82,7 @@ class ProjectionManifold:
         ball_radius_rad: r_b for ``ball`` (None: :data:`BALL_BANDWIDTHS` bandwidths).
         rounds: batches of ``n`` seeds tried before a draw gives up.
         eps_proj_m: acceptance tolerance (m).
+        constraints: ``active`` (eq. 5.1) or ``full`` (:func:`project`).
     """
 
     world: ArmWorld
@@ -90,6 +91,7 @@ class ProjectionManifold:
     ball_radius_rad: float | None = None
     rounds: int = 3
     eps_proj_m: float = EPS_PROJ_M
+    constraints: str = "active"
     stats: ProjectionStats = field(default_factory=ProjectionStats)
 
     def __post_init__(self):
@@ -103,6 +105,9 @@ class ProjectionManifold:
                              f"{', '.join(METHODS)}")
         if self.ball_radius_rad is not None and not self.ball_radius_rad > 0:
             raise ValueError(f"ball_radius_rad must be > 0, got {self.ball_radius_rad}")
+        if self.constraints not in CONSTRAINTS:
+            raise ValueError(f"unknown constraint set {self.constraints!r}; choose from "
+                             f"{', '.join(CONSTRAINTS)}")
 
     def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator,
                predicted: ParticleBelief | None = None) -> np.ndarray:
@@ -122,7 +127,7 @@ class ProjectionManifold:
         for _ in range(self.rounds):
             seeds = self.seeds(n, predicted, rng=rng)
             result = project(self.world, seeds, active, method=self.method,
-                             eps_proj_m=self.eps_proj_m)
+                             eps_proj_m=self.eps_proj_m, constraints=self.constraints)
             self.stats.seeds += len(seeds)
             self.stats.failures += int((~result.success).sum())
             self.stats.iterations += int(result.iterations.sum())

@@ -17,6 +17,20 @@ Two root finders, batched over seeds:
   the smallest joint motion that zeroes the linearised residual (so the seed moves as
   little as possible, which keeps the projected samples near their seeds).
 
+Two constraint sets:
+
+- ``active`` (the thesis, eq. 5.1): only the active sensors' distances. A projected
+  sample may leave an inactive sensor touching or a link inside an obstacle, so its
+  p(o | s) is that of a wrong reading (with the discriminative sensors of sec. 4.4.1, a
+  factor e = 0.001 per such sensor); where a touching link presses its neighbouring
+  sensors against the surface too, every dual can fail the sec. 4.3.5 test and the MPF
+  falls back on the CPF at every contact step.
+- ``full`` (beyond the thesis): the whole reading as constraints, the active sensors'
+  distances as equalities and, as one-sided rows ``min(0, d - margin)``, every inactive
+  sensor ball clear of the environment by more than the contact tolerance and every body
+  ball out of penetration. The rows are hinges: zero (and gradient zero) once satisfied,
+  so a sample that already satisfies them moves exactly as under ``active``.
+
 ``cmanip bench configest`` measures both (iterations, failures, time).
 """
 
@@ -29,6 +43,8 @@ import numpy as np
 from models.arms.world import ArmWorld
 
 METHODS = ("gd", "lm")
+
+CONSTRAINTS = ("active", "full")
 
 EPS_PROJ_M = 0.001
 """Accept a projected sample when every active sensor is within this of the surface (m);
@@ -63,8 +79,8 @@ class Projection:
 
 
 def project(world: ArmWorld, seeds: np.ndarray, active: np.ndarray, *, method: str = "lm",
-            eps_proj_m: float = EPS_PROJ_M, max_iterations: int | None = None
-            ) -> Projection:
+            eps_proj_m: float = EPS_PROJ_M, max_iterations: int | None = None,
+            constraints: str = "active") -> Projection:
     """Project seeds (K, dof) onto the manifold of the active sensors.
 
     Args:
@@ -74,13 +90,18 @@ def project(world: ArmWorld, seeds: np.ndarray, active: np.ndarray, *, method: s
         method: ``gd`` or ``lm``.
         eps_proj_m: acceptance tolerance (m).
         max_iterations: iteration budget (default: :data:`MAX_ITERATIONS`).
+        constraints: ``active`` (eq. 5.1) or ``full`` (also the inactive sensors clear
+            and the body out of penetration; module docstring).
 
     Raises:
-        ValueError: an unknown method, or no active sensor.
+        ValueError: an unknown method or constraint set, or no active sensor.
     """
     if method not in METHODS:
         raise ValueError(f"unknown projection method {method!r}; choose from "
                          f"{', '.join(METHODS)}")
+    if constraints not in CONSTRAINTS:
+        raise ValueError(f"unknown constraint set {constraints!r}; choose from "
+                         f"{', '.join(CONSTRAINTS)}")
     active = np.asarray(active, dtype=int)
     if active.size == 0:
         raise ValueError("projection needs at least one active sensor")
@@ -88,13 +109,20 @@ def project(world: ArmWorld, seeds: np.ndarray, active: np.ndarray, *, method: s
     q = world.normalise(np.array(seeds, dtype=float))
     iterations = np.full(len(q), budget)
     running = np.ones(len(q), dtype=bool)
-    eye = np.eye(len(active))[None]
+    clear, margin = _clearance_rows(world, active, eps_proj_m, constraints)
+    eye = np.eye(len(active) + len(clear))[None]
     for it in range(budget + 1):
         index = np.flatnonzero(running)
         if index.size == 0:
             break
         f, J = world.sensor_distances(q[index], gradient=True, sensors=active)
         done = np.abs(f).max(axis=1) <= eps_proj_m
+        if len(clear):
+            d, g = world.ball_distances(q[index], gradient=True, balls=clear)
+            hinge = np.minimum(d - margin, 0.0)
+            done &= (hinge >= -eps_proj_m).all(axis=1)
+            f = np.concatenate([f, hinge], axis=1)
+            J = np.concatenate([J, g * (hinge < 0)[..., None]], axis=1)
         iterations[index[done]] = it
         running[index[done]] = False
         if it == budget:
@@ -110,3 +138,16 @@ def project(world: ArmWorld, seeds: np.ndarray, active: np.ndarray, *, method: s
         step *= np.minimum(1.0, MAX_STEP_RAD / np.maximum(norm, 1e-12))
         q[index] = world.normalise(q[index] + step)
     return Projection(q, ~running, iterations)
+
+
+def _clearance_rows(world: ArmWorld, active: np.ndarray, eps_proj_m: float,
+                    constraints: str) -> tuple[np.ndarray, np.ndarray]:
+    """The balls of the one-sided rows of ``full`` and the clearance (m) each must keep:
+    the inactive sensors' balls the contact tolerance plus eps_proj (so that they are
+    accepted clear of the tolerance), the body's none (out of penetration)."""
+    if constraints == "active":
+        return np.empty(0, dtype=int), np.empty(0)
+    owner = world.sensor_of_ball
+    clear = np.flatnonzero(~np.isin(owner, active))
+    margin = np.where(owner[clear] >= 0, world.spec.contact_tolerance_m + eps_proj_m, 0.0)
+    return clear, margin

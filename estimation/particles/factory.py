@@ -17,7 +17,7 @@ particle filter (Alg. 4.2), which needs a contact-manifold representation."""
 
 def make_filter(kind: str, world: FilterModel, manifold: ContactManifold | None = None, *,
                 dual_particles: int = 25, mixing_rate: float = 0.1,
-                resample_size: int | None = None
+                dual_share: str = "fixed", resample_size: int | None = None
                 ) -> ConventionalParticleFilter | ManifoldParticleFilter:
     """A filter of ``kind`` over ``world``'s transition and observation models.
 
@@ -28,6 +28,8 @@ def make_filter(kind: str, world: FilterModel, manifold: ContactManifold | None 
             required for ``mpf``, ignored for ``cpf``.
         dual_particles: the MPF's nd (thesis sec. 4.3.2: 25).
         mixing_rate: the MPF's phi in [0, 1] (sec. 4.3.2: 0.1).
+        dual_share: the MPF's split between its sets, ``fixed`` (Alg. 4.2) or ``density``
+            (:class:`ManifoldParticleFilter`).
         resample_size: the CPF's particle count after resampling (default: unchanged).
 
     Raises:
@@ -39,5 +41,5 @@ def make_filter(kind: str, world: FilterModel, manifold: ContactManifold | None 
         if manifold is None:
             raise ValueError("the MPF needs a contact-manifold representation")
         return ManifoldParticleFilter(world, manifold, dual_particles=dual_particles,
-                                      mixing_rate=mixing_rate)
+                                      mixing_rate=mixing_rate, dual_share=dual_share)
     raise ValueError(f"unknown filter kind {kind!r}; choose from {', '.join(FILTER_KINDS)}")

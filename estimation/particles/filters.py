@@ -13,12 +13,21 @@ from typing import Protocol
 import numpy as np
 
 from estimation.particles.belief import ParticleBelief
-from estimation.particles.kde import log_density
+from estimation.particles.kde import leave_one_out_log_density, log_density
 from estimation.particles.logmath import log_sum_exp
 from models.protocols import FilterModel
 
 SAMPLING_FAILURE_LIKELIHOOD = 0.1
 """A dual draw fails when every sample has p(o | s) below this (thesis sec. 4.3.5)."""
+
+DUAL_SHARES = ("fixed", "density")
+"""How the MPF splits the posterior between its two sets: ``fixed`` (Alg. 4.2, phi to the
+duals whatever they are) or ``density`` (phi scaled down when the duals sit where the
+prior is thinner than under the conventional set's posterior; see the MPF's docstring)."""
+
+DENSITY_PROBES = 256
+"""Posterior particles of the conventional set at which the ``density`` share evaluates
+the prior (a Q x N kernel sum, so Q stays bounded when N is large)."""
 
 
 class ContactManifold(Protocol):
@@ -100,18 +109,35 @@ class ManifoldParticleFilter:
         manifold: a contact-manifold representation (``sample(observation, n, *, rng)``).
         dual_particles: nd.
         mixing_rate: phi in [0, 1] (0 = CPF, 1 = pure MPF).
+        dual_share: ``fixed`` (the thesis) or ``density``. Alg. 4.2 gives the dual set the
+            mass phi at every contact step however improbable its samples are under the
+            prior; where the manifold is large (a 7-D arm's, a 3-DOF arm's with one lit
+            sensor) a projection may land every dual far from the prior mass, and those
+            duals, consistent with every later free-space reading, persist as a spurious
+            mode. ``density`` (not in the thesis) compares the prior density the two sets
+            see on the manifold: D_d = sum_j w_j b+(d_j) p(o | d_j) over the duals and D_c,
+            the mean of b+(s) p(o | s) (b+ leave-one-out) at the conventional set's
+            posterior particles, both estimates of the posterior's mean density when each
+            set samples the manifold well; the duals get phi * min(1, D_d / D_c). Where no
+            conventional particle explains the observation, p(o | s) makes D_c small and
+            the duals keep phi (the CPF's failure the duals are there for).
     """
 
     def __init__(self, world: FilterModel, manifold: ContactManifold, *,
-                 dual_particles: int = 25, mixing_rate: float = 0.1):
+                 dual_particles: int = 25, mixing_rate: float = 0.1,
+                 dual_share: str = "fixed"):
         if not 0.0 <= mixing_rate <= 1.0:
             raise ValueError(f"mixing_rate must be in [0, 1], got {mixing_rate}")
+        if dual_share not in DUAL_SHARES:
+            raise ValueError(f"dual_share must be one of {', '.join(DUAL_SHARES)}, got "
+                             f"{dual_share!r}")
         if dual_particles < 1:
             raise ValueError(f"dual_particles must be >= 1, got {dual_particles}")
         self.world = world
         self.manifold = manifold
         self.dual_particles = dual_particles
         self.mixing_rate = mixing_rate
+        self.dual_share = dual_share
 
     def update(self, belief: ParticleBelief, action: np.ndarray, observation: np.ndarray, *,
                rng: np.random.Generator) -> tuple[ParticleBelief, UpdateDiagnostics]:
@@ -119,8 +145,8 @@ class ManifoldParticleFilter:
         observation = np.asarray(observation, dtype=bool)
         predicted = self.world.sample_step(np.array(belief.states), action, rng=rng)
         prior_w = belief.weights
-        cpf = _normalised(belief.log_weights
-                          + self.world.log_likelihood(observation, predicted, action))
+        cpf_ll = self.world.log_likelihood(observation, predicted, action)
+        cpf = _normalised(belief.log_weights + cpf_ll)
         contact = bool(observation.any())
         parts_states, parts_log_w = [], []
         failed = dual_used = False
@@ -131,10 +157,14 @@ class ManifoldParticleFilter:
             dual_ll = self.world.log_likelihood(observation, duals, action)
             failed = bool(np.all(dual_ll < np.log(SAMPLING_FAILURE_LIKELIHOOD)))
             if not failed:
-                dual = _normalised(log_density(duals, predicted, prior_w,
-                                               angular=belief.angular))
+                dual_prior = log_density(duals, predicted, prior_w, angular=belief.angular)
+                dual = _normalised(dual_prior)
                 if dual is not None:
                     dual_used = True
+                    if self.dual_share == "density" and cpf is not None:
+                        phi *= dual_density_ratio(
+                            predicted, prior_w, belief.angular, cpf, cpf_ll, dual,
+                            dual_prior + dual_ll, rng=rng)
                     parts_states.append(duals)
                     parts_log_w.append(dual + np.log(phi) if phi > 0 else dual - np.inf)
         elif cpf is not None and phi > 0:
@@ -154,3 +184,35 @@ class ManifoldParticleFilter:
                                    belief.angular)
         diagnostics = UpdateDiagnostics(contact, dual_used, failed, degenerate)
         return posterior.resample(len(belief), rng=rng), diagnostics
+
+
+def dual_density_ratio(predicted: np.ndarray, prior_w: np.ndarray, angular: tuple[int, ...],
+                       cpf_log_w: np.ndarray, cpf_log_likelihood: np.ndarray,
+                       dual_log_w: np.ndarray, dual_log_posterior: np.ndarray, *,
+                       rng: np.random.Generator) -> float:
+    """min(1, D_d / D_c), the ``density`` share's scale (:class:`ManifoldParticleFilter`).
+
+    D_c: the mean of b+(s) p(o | s) (b+ leave-one-out) over up to :data:`DENSITY_PROBES`
+    draws of the conventional set's posterior; D_d: the duals' weighted mean of the same.
+
+    Args:
+        predicted: (N, d) the propagated particles (the prior b+); prior_w: (N,) weights.
+        angular: the wrapped columns.
+        cpf_log_w: (N,) the conventional set's normalised posterior log weights.
+        cpf_log_likelihood: (N,) log p(o | s) of the propagated particles.
+        dual_log_w: (M,) the duals' normalised log weights.
+        dual_log_posterior: (M,) log b+(d) + log p(o | d) at the duals.
+
+    Returns:
+        1 when no conventional particle has a neighbour to give it a density.
+    """
+    p = np.exp(cpf_log_w)
+    probes = rng.choice(len(predicted), size=min(DENSITY_PROBES, len(predicted)),
+                        p=p / p.sum())
+    at_probes = (leave_one_out_log_density(probes, predicted, prior_w, angular=angular)
+                 + cpf_log_likelihood[probes])
+    log_dc = log_sum_exp(at_probes) - np.log(len(probes))
+    if not np.isfinite(log_dc):
+        return 1.0
+    log_dd = log_sum_exp(dual_log_w + dual_log_posterior)
+    return float(np.exp(min(0.0, log_dd - log_dc)))

@@ -76,6 +76,25 @@ def log_density(queries: np.ndarray, states: np.ndarray, weights: np.ndarray,
     return kernel(queries, states, log_w, h, _angular_mask(d, angular)) + norm
 
 
+def leave_one_out_log_density(indices: np.ndarray, states: np.ndarray, weights: np.ndarray,
+                              bandwidth: np.ndarray | None = None,
+                              angular: tuple[int, ...] = (2,)) -> np.ndarray:
+    """(Q,) log density of the weighted states (N, d) at ``states[indices]``, each point's
+    own kernel left out (the leave-one-out estimate: a point's own kernel would dominate
+    its density where particles are sparse, as in a 7-D configuration space). -inf where
+    nothing but the point itself contributes."""
+    w = weights / weights.sum()
+    d = states.shape[1]
+    h = (silverman_bandwidth(states, w, angular) if bandwidth is None
+         else np.asarray(bandwidth, float))
+    norm = -np.log(h).sum() - 0.5 * d * np.log(2 * np.pi)
+    with_self = log_density(states[indices], states, w, h, angular)
+    own = np.log(np.maximum(w[indices], 1e-300)) + norm
+    excess = with_self - own  # log (1 + others / own) >= 0
+    with np.errstate(divide="ignore"):
+        return own + np.log(np.maximum(np.expm1(np.maximum(excess, 0.0)), 0.0))
+
+
 PARALLEL_MIN_CENTRES = 4096
 """Kernel sums over at least this many centres run on all cores."""
 

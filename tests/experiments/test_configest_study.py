@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from cmanip.cli import main
 from cmanip.config import load_config
 from experiments.configest_study import ConfigestSettings
@@ -52,3 +54,20 @@ def test_configest_run_refuses_bad_input_before_building(tmp_path, capsys):
     assert "--tactile-error-rate must be in [0, 1]" in capsys.readouterr().err
     assert main(["configest", "run", "--particles", "5", "--out", str(tmp_path)]) == 2
     assert "--particles must exceed" in capsys.readouterr().err
+
+
+def test_the_beyond_thesis_variants_are_settings_and_bad_ones_clear_errors(tmp_path, capsys):
+    config = tmp_path / "ce.yaml"
+    config.write_text("constraints: full\ndual_share: density\n")
+    assert load_config(ConfigestSettings, config) == ConfigestSettings(
+        constraints="full", dual_share="density")
+    config.write_text("dual_share: half\n")
+    assert main(["experiment", "configest", "--config", str(config), "--arm", "2dof",
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "ce.yaml" in err and "dual_share" in err
+    with pytest.raises(SystemExit) as exit_:
+        main(["experiment", "configest", "--dual-share", "some", "--arm", "2dof",
+              "--out", str(tmp_path / "o")])
+    assert exit_.value.code == 2
+    assert "--dual-share: invalid choice" in capsys.readouterr().err

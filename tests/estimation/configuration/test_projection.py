@@ -39,6 +39,33 @@ def test_projected_samples_lie_on_the_manifold(arm, method):
     assert (np.abs(f_failed).max(axis=1) > EPS_PROJ_M).all()
 
 
+@pytest.mark.parametrize("arm", ["3dof", "wam"])
+def test_full_projection_also_keeps_the_unlit_sensors_clear_and_the_body_out(arm):
+    w = world(arm)
+    run = w.simulate(rng=np.random.default_rng(0))
+    t = int(np.flatnonzero(run.contacts.any(axis=1))[0])
+    active = np.flatnonzero(run.contacts[t])
+    seeds = w.normalise(run.q_true[t] + np.random.default_rng(1).normal(0, 0.1, (60, w.dof)))
+    thesis = project(w, seeds, active, constraints="active")
+    full = project(w, seeds, active, constraints="full")
+    assert full.success.mean() > 0.3
+    ok = full.states[full.success]
+    f, _ = w.sensor_distances(ok, sensors=active)
+    assert np.abs(f).max() <= EPS_PROJ_M
+    unlit = np.setdiff1d(np.arange(w.sensor_count), active)
+    clear, _ = w.sensor_distances(ok, sensors=unlit)
+    assert (clear > w.spec.contact_tolerance_m).all()
+    body, _ = w.ball_distances(ok, balls=np.flatnonzero(w.sensor_of_ball < 0))
+    assert (body >= -EPS_PROJ_M).all()
+    # every accepted sample reads exactly the observation; eq. 5.1 alone does not ensure it
+    assert (w.true_contacts(ok) == run.contacts[t]).all()
+    loose = thesis.states[thesis.success]
+    assert (w.log_likelihood(run.contacts[t], ok) >= w.log_likelihood(
+        run.contacts[t], loose).max() - 1e-9).all()
+    with pytest.raises(ValueError, match="constraint set"):
+        project(w, seeds, active, constraints="some")
+
+
 def test_explicit_manifold_holds_exactly_the_elbow_up_and_down_configurations():
     w = world("2dof")
     explicit = ExplicitTwoLinkManifold(w)

@@ -4,7 +4,11 @@ import numpy as np
 import pytest
 
 from estimation.particles.belief import ParticleBelief, low_variance_indices
-from estimation.particles.kde import log_density, silverman_bandwidth
+from estimation.particles.kde import (
+    leave_one_out_log_density,
+    log_density,
+    silverman_bandwidth,
+)
 from models.pose import wrap_angle
 
 
@@ -80,3 +84,20 @@ def test_a_seven_joint_belief_declares_its_angular_columns():
 def test_angular_columns_must_be_columns_of_the_state():
     with pytest.raises(ValueError, match="angular columns"):
         ParticleBelief.uniform(np.zeros((4, 2)))
+
+
+def test_leave_one_out_density_leaves_out_exactly_the_point_itself():
+    rng = np.random.default_rng(3)
+    states, weights = rng.normal(size=(40, 3)), rng.random(40)
+    h = np.array([0.5, 0.7, 0.9])
+    idx = np.array([0, 7, 39])
+    loo = leave_one_out_log_density(idx, states, weights, h, angular=())
+    for k, i in enumerate(idx):
+        others = np.delete(np.arange(40), i)
+        direct = log_density(states[i:i + 1], states[others], weights[others], h, angular=())
+        # the others' density, scaled by their share of the total weight
+        expected = direct[0] + np.log(weights[others].sum() / weights.sum())
+        assert loo[k] == pytest.approx(expected, abs=1e-9)
+    lonely = np.array([[0.0, 0.0, 0.0], [100.0, 0.0, 0.0]])
+    assert np.isneginf(leave_one_out_log_density(np.array([0]), lonely, np.ones(2), h,
+                                                 angular=()))[0]

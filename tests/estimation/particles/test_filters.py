@@ -5,7 +5,13 @@ import pytest
 
 from estimation.hand.manifolds import RejectionSampledManifold, TrajectoryRolloutManifold
 from estimation.particles.belief import ParticleBelief
-from estimation.particles.filters import ConventionalParticleFilter, ManifoldParticleFilter
+from estimation.particles.filters import (
+    ConventionalParticleFilter,
+    ManifoldParticleFilter,
+    dual_density_ratio,
+)
+from estimation.particles.kde import log_density
+from estimation.particles.logmath import log_sum_exp
 from models.planar.observation import observation_key
 
 ACTION = np.array([0.005, 0.0, 0.0])
@@ -74,3 +80,28 @@ def test_mixing_rate_zero_is_the_cpf_and_bad_parameters_are_refused(box_world, b
     assert a[0] == pytest.approx(b[0], abs=0.03)
     with pytest.raises(ValueError, match="mixing_rate"):
         ManifoldParticleFilter(box_world, box_manifold, mixing_rate=1.5)
+
+
+def test_density_share_keeps_phi_for_duals_where_the_posterior_is_and_cuts_far_ones():
+    rng = np.random.default_rng(0)
+    predicted = rng.normal(0.0, 0.1, (200, 2))
+    prior_w = np.full(200, 1 / 200)
+    explained = np.zeros(200)  # every conventional particle explains the reading
+    cpf = np.log(prior_w)
+    near = rng.normal(0.0, 0.1, (25, 2))
+    far = near + 1.0  # ten prior standard deviations away
+
+    def ratio(duals, cpf_ll=explained):
+        dual_prior = log_density(duals, predicted, prior_w, angular=())
+        dual_w = dual_prior - log_sum_exp(dual_prior)
+        return dual_density_ratio(predicted, prior_w, (), cpf, cpf_ll, dual_w,
+                                  dual_prior, rng=np.random.default_rng(1))
+
+    assert ratio(near) > 0.5
+    assert ratio(far) < 1e-6
+    # where the conventional set cannot explain the reading (one wrong sensor at e = 1e-3
+    # each, three of them) the duals keep much more of phi than they would otherwise
+    assert ratio(near + 0.25, np.full(200, 3 * np.log(1e-3))) == 1.0
+    assert ratio(near + 0.25) < 1.0
+    with pytest.raises(ValueError, match="dual_share"):
+        ManifoldParticleFilter(None, None, dual_share="some")
