@@ -25,6 +25,7 @@ import sys
 
 from cmanip import bench, configest, experiment, pomdp, push, run, scenes, simulate
 from cmanip.options import HelpFormatter
+from experiments.runner import TrialsInterrupted
 from models.config import ConfigError
 
 GROUPS = (simulate, run, configest, push, pomdp, bench, experiment, scenes)
@@ -43,6 +44,9 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.handler(args)
+    except TrialsInterrupted as interrupted:
+        print(f"cmanip: {interrupted}", file=sys.stderr)
+        return 130
     except (ConfigError, ValueError, OSError) as err:
         print(f"cmanip: error: {err}", file=sys.stderr)
         return 2

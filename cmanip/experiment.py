@@ -27,7 +27,13 @@ from cmanip.config import (
     overridden,
     write_config,
 )
-from cmanip.options import setting_option, subcommand, workers_option
+from cmanip.options import (
+    backend_of,
+    runner_options,
+    setting_option,
+    subcommand,
+    workers_option,
+)
 from cmanip.run import add_episode_options, override_episode, override_solver, solve
 from diagrams.herb.settings import POLICIES
 from experiments.closedloop_study import ClosedLoopSettings
@@ -57,7 +63,7 @@ def register(commands) -> None:
     setting_option(mpf, "--trials", MPF.trials, "trials per condition", type=int)
     setting_option(mpf, "--seed", MPF.seed, "study seed; trial j is seeded from (seed, j)",
                    type=int)
-    workers_option(mpf)
+    runner_options(mpf)
     setting_option(mpf, "--object", MPF.trial.object, "object name or path to a YAML")
     setting_option(mpf, "--sensors", MPF.trial.sensors,
                    "planar sensor layout (low, medium, high or a YAML path)")
@@ -161,9 +167,10 @@ def _register_configest(studies) -> None:
     setting_option(ce, "--dual-share", defaults.dual_share,
                    "the MPF's mass for its duals (fixed: phi, Alg. 4.2; density: phi scaled "
                    "by the posterior density the duals see)", choices=("fixed", "density"))
-    workers_option(ce)
+    runner_options(ce)
     ce.add_argument("--out", type=Path, required=True,
-                    help="output directory (summary.json, configest.png, config.yaml)")
+                    help="output directory (summary.json, configest.png, config.yaml, "
+                         "trials.jsonl)")
     ce.add_argument("--no-progress", action="store_true", help="no progress bars")
     ce.set_defaults(handler=_configest)
 
@@ -181,7 +188,7 @@ def _configest(args: argparse.Namespace) -> int:
         settings = replace(settings, arms=ARMS if args.arm == "all" else (args.arm,))
     for arm in settings.arms:  # a bad arm file (or link) fails before any trial runs
         ArmWorld(ArmSpec.load(arm))
-    summary = run_study(settings, args.out, workers=args.workers,
+    summary = run_study(settings, args.out, backend=backend_of(args), resume=args.resume,
                         progress=not args.no_progress)
     write_config(settings, args.out)
     for arm, filters in summary["arms"].items():
@@ -333,8 +340,9 @@ def _mpf(args: argparse.Namespace) -> int:
     from experiments.mpf_study import run_study
 
     config = resolve_mpf(args)
-    summary = run_study(config.part, config.trial, config.trials, config.seed, args.workers,
-                        args.out, progress=not args.no_progress)
+    summary = run_study(config.part, config.trial, config.trials, config.seed, args.out,
+                        backend=backend_of(args), resume=args.resume,
+                        progress=not args.no_progress)
     write_config(config, args.out)
     parts = summary["parts"] if config.part == "all" else {config.part: summary}
     for name, part in parts.items():

@@ -20,6 +20,29 @@ def subcommand(parent, name: str, help: str, description: str | None = None):
                              formatter_class=HelpFormatter)
 
 
+def runner_options(parser) -> None:
+    """Where a study's trials run and whether it picks up a killed run:
+    ``--backend serial|processes|ray``, ``--workers N``, ``--address HOST:PORT|auto`` (a Ray
+    cluster) and ``--resume``; read back by :func:`backend_of`."""
+    parser.add_argument("--backend", choices=("serial", "processes", "ray"),
+                        default="processes",
+                        help="where trials run: this process, a local process pool, or Ray "
+                             "(local, or the cluster at --address)")
+    workers_option(parser, "worker processes (processes) or CPUs (local ray)")
+    parser.add_argument("--address", default=None,
+                        help="a Ray cluster to run on (HOST:PORT or auto; ray backend)")
+    parser.add_argument("--resume", action="store_true",
+                        help="keep the finished trials in OUT/trials.jsonl and run only the "
+                             "missing ones (same settings required)")
+
+
+def backend_of(args: argparse.Namespace):
+    """The :class:`experiments.runner.Backend` the runner options ask for."""
+    from experiments.runner import Backend
+
+    return Backend(args.backend, args.workers, args.address)
+
+
 def workers_option(parser, what: str = "processes") -> None:
     """``--workers N`` (N >= 1; default 1): how many processes run a study's trials; the
     results do not depend on it. A value below 1 is a usage error (exit 2)."""

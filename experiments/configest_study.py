@@ -19,7 +19,6 @@ judged on the mean RMSE.
 from __future__ import annotations
 
 import json
-import multiprocessing
 import time
 import zlib
 from dataclasses import asdict, dataclass
@@ -27,7 +26,6 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from estimation.configuration.belief import joint_rmse
 from estimation.configuration.manifold import (
@@ -39,6 +37,7 @@ from estimation.configuration.projection import CONSTRAINTS, METHODS
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.factory import make_filter
 from estimation.particles.filters import DUAL_SHARES
+from experiments.runner import Backend, Job, TrialStore, map_trials
 from experiments.statistics import half_width
 from models.arms.spec import ArmSpec
 from models.arms.world import ArmWorld
@@ -196,27 +195,17 @@ def run_trial(arm: str, trial: int, settings: ConfigestSettings) -> TrialResult:
     return TrialResult(rmse, ms, projection, int(trajectory.contacts[1:].any(axis=1).sum()))
 
 
-def _job(job):
-    return run_trial(*job)
+def trial_jobs(settings: ConfigestSettings) -> list[Job]:
+    """The study's trials, keyed ``arm/trial``."""
+    return [Job(f"{arm}/{j}", (arm, j, settings)) for arm in settings.arms
+            for j in range(settings.trials)]
 
 
-def run_arm(arm: str, settings: ConfigestSettings, workers: int, progress: bool
-            ) -> list[TrialResult]:
-    """Every trial of one arm, in ``workers`` spawned processes; results in trial order."""
-    jobs = [(arm, j, settings) for j in range(settings.trials)]
-    bar = tqdm(total=len(jobs), desc=f"configest {arm}", unit="trial", disable=not progress)
-    results = []
-    if workers <= 1:
-        for job in jobs:
-            results.append(_job(job))
-            bar.update()
-    else:
-        with multiprocessing.get_context("spawn").Pool(workers) as pool:
-            for result in pool.imap(_job, jobs):
-                results.append(result)
-                bar.update()
-    bar.close()
-    return results
+def trial_store(settings: ConfigestSettings, out: Path, *, resume: bool) -> TrialStore:
+    """``out/trials.jsonl``, keyed by every setting a trial's result depends on (not the
+    arms or the trial count, which only choose trials: a resumed study may add some)."""
+    relevant = {k: v for k, v in asdict(settings).items() if k not in ("arms", "trials")}
+    return TrialStore(out, "configest", relevant, resume=resume)
 
 
 def summarise_arm(arm: str, results: list[TrialResult]) -> dict:
@@ -280,17 +269,22 @@ def hypotheses(arms: dict) -> dict:
     return out
 
 
-def run_study(settings: ConfigestSettings, out: Path, *, workers: int = 1,
-              progress: bool = True) -> dict:
-    """Run every arm, write ``summary.json`` and ``configest.png`` into ``out``."""
+def run_study(settings: ConfigestSettings, out: Path, *, backend: Backend = Backend(),
+              resume: bool = False, progress: bool = True) -> dict:
+    """Run every arm's trials on ``backend`` (each kept in ``out/trials.jsonl`` as it
+    finishes; ``resume`` runs only the missing ones), write ``summary.json`` and
+    ``configest.png`` into ``out``."""
     from experiments.configest_plots import plot_rmse
 
-    out.mkdir(parents=True, exist_ok=True)
+    store = trial_store(settings, out, resume=resume)
+    jobs = trial_jobs(settings)
+    results = map_trials(run_trial, jobs, backend=backend, store=store, desc="configest",
+                         progress=progress)
     arms = {}
     for arm in settings.arms:
-        results = run_arm(arm, settings, workers, progress)
-        arms[arm] = summarise_arm(arm, results)
-        arms[arm]["contact_steps_mean"] = float(np.mean([r.contact_steps for r in results]))
+        mine = [r for job, r in zip(jobs, results, strict=True) if job.args[0] == arm]
+        arms[arm] = summarise_arm(arm, mine)
+        arms[arm]["contact_steps_mean"] = float(np.mean([r.contact_steps for r in mine]))
     filters = {a: {k: v for k, v in f.items() if isinstance(v, dict)} for a, f in arms.items()}
     summary = {"settings": asdict(settings), "arms": arms,
                "hypotheses": hypotheses(filters),

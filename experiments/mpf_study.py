@@ -16,13 +16,11 @@ Parts: ``compare`` (CPF vs MPF-AM), ``resolution`` (three sensor layouts), ``rat
 from __future__ import annotations
 
 import json
-import multiprocessing
 from dataclasses import asdict, dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from estimation.hand.manifolds import (
     AnalyticManifold,
@@ -32,6 +30,7 @@ from estimation.hand.manifolds import (
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.factory import make_filter
 from experiments.mpf_plots import plot_part, plot_world
+from experiments.runner import Backend, Job, TrialStore, map_trials
 from experiments.statistics import half_width
 from models.planar.world import PlanarWorld
 
@@ -200,8 +199,10 @@ def _make_filter(world, settings, spec, mean, std, action, study_seed, rng):
                        mixing_rate=phi)
 
 
-def _trial_job(job):
-    condition, seed, trial = job
+def condition_trial(condition: Condition, seed: int, trial: int) -> TrialResult:
+    """Trial ``trial`` of a condition in a worker: the condition's shared manifold
+    representations built once per process (cached), then :func:`run_trial`."""
+    _warm(condition, seed)
     return run_trial(condition.settings, condition.filters, seed, trial)
 
 
@@ -213,27 +214,6 @@ def _warm(condition: Condition, seed: int) -> None:
         _analytic(s.object, s.sensors, s.am_dtheta_deg)
     if "rs" in kinds:
         _rejection(s.object, s.sensors, s.rs_size, s.rs_epsilon_m, seed)
-
-
-def run_condition(condition: Condition, trials: int, seed: int, workers: int,
-                  progress: bool = True) -> list[TrialResult]:
-    """Run ``trials`` trials of a condition, in ``workers`` processes (spawned)."""
-    jobs = [(condition, seed, i) for i in range(trials)]
-    bar = tqdm(total=trials, desc=condition.name, disable=not progress, unit="trial")
-    results = []
-    if workers <= 1:
-        _warm(condition, seed)
-        for job in jobs:
-            results.append(_trial_job(job))
-            bar.update()
-    else:
-        context = multiprocessing.get_context("spawn")
-        with context.Pool(workers, initializer=_warm, initargs=(condition, seed)) as pool:
-            for result in pool.imap(_trial_job, jobs):
-                results.append(result)
-                bar.update()
-    bar.close()
-    return results
 
 
 # ----------------------------------------------------------------------------- aggregation
@@ -309,16 +289,21 @@ def conditions_for(part: str, base: TrialSettings) -> list[Condition]:
     raise ValueError(f"unknown part {part!r}; choose from {', '.join(PARTS)}, all")
 
 
-def run_part(part: str, base: TrialSettings, trials: int, seed: int, workers: int, out: Path,
+def run_part(part: str, base: TrialSettings, trials: int, seed: int, out: Path, *,
+             backend: Backend = Backend(), resume: bool = False,
              progress: bool = True) -> dict:
-    """Run a part, write ``out/summary.json`` and its figures, return the summary."""
+    """Run a part's trials on ``backend`` (each kept in ``out/trials.jsonl`` as it
+    finishes; ``resume`` runs only the missing ones), write ``out/summary.json`` and its
+    figures, return the summary."""
     if trials < 2:
         raise ValueError(f"--trials must be at least 2 (for confidence intervals), got {trials}")
-    out.mkdir(parents=True, exist_ok=True)
-    runs = []
-    for condition in conditions_for(part, base):
-        results = run_condition(condition, trials, seed, workers, progress)
-        runs.append((condition, results))
+    conditions = conditions_for(part, base)
+    store = TrialStore(out, f"mpf/{part}", {"trial": asdict(base), "seed": seed},
+                       resume=resume)
+    jobs = [Job(f"{c.name}/{i}", (c, seed, i)) for c in conditions for i in range(trials)]
+    results = map_trials(condition_trial, jobs, backend=backend, store=store,
+                         desc=f"mpf {part}", progress=progress)
+    runs = [(c, results[k * trials:(k + 1) * trials]) for k, c in enumerate(conditions)]
     summary = {"part": part, "seed": seed, "trials": trials,
                "conditions": [summarise(c, r) for c, r in runs]}
     if len(runs) == 1:
@@ -333,12 +318,14 @@ def run_part(part: str, base: TrialSettings, trials: int, seed: int, workers: in
     return summary
 
 
-def run_study(part: str, base: TrialSettings, trials: int, seed: int, workers: int, out: Path,
+def run_study(part: str, base: TrialSettings, trials: int, seed: int, out: Path, *,
+              backend: Backend = Backend(), resume: bool = False,
               progress: bool = True) -> dict:
     """``part`` in PARTS or ``all`` (each part into ``out/<part>/``, one combined summary)."""
+    options = {"backend": backend, "resume": resume, "progress": progress}
     if part != "all":
-        return run_part(part, base, trials, seed, workers, out, progress)
-    summaries = {p: run_part(p, base, trials, seed, workers, out / p, progress) for p in PARTS}
+        return run_part(part, base, trials, seed, out, **options)
+    summaries = {p: run_part(p, base, trials, seed, out / p, **options) for p in PARTS}
     out.mkdir(parents=True, exist_ok=True)
     combined = {"part": "all", "seed": seed, "trials": trials, "parts": summaries}
     (out / "summary.json").write_text(json.dumps(combined, indent=2) + "\n")

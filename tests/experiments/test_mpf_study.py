@@ -20,7 +20,7 @@ def test_trials_are_reproducible_from_the_seed():
 
 
 def test_compare_part_writes_summary_and_figure(tmp_path):
-    summary = run_part("compare", TINY, 3, 0, 1, tmp_path, progress=False)
+    summary = run_part("compare", TINY, 3, 0, tmp_path, progress=False)
     written = json.loads((tmp_path / "summary.json").read_text())
     assert written["filters"].keys() == {"cpf", "mpf-am"}
     entry = written["filters"]["mpf-am"]

@@ -1,0 +1,123 @@
+"""The trial runner: backends agree, results survive a kill, a foreign trials file is
+refused."""
+
+import json
+import operator
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from cmanip.cli import main
+from experiments.configest_study import ConfigestSettings, TrialResult
+from experiments.runner import (
+    TRIALS_FILE,
+    Backend,
+    Job,
+    TrialStore,
+    decode,
+    encode,
+    map_trials,
+)
+
+TIMING_KEYS = ("update_ms_median",)
+"""Wall times: measured anew by every run, so the one part of a summary that differs."""
+
+
+def test_encoding_round_trips_results_exactly():
+    result = TrialResult(
+        rmse_rad={"cpf": np.array([0.1, 1 / 3, np.nan]), "mpf-ball": np.arange(3.0)},
+        update_ms={"cpf": 1.25}, projection={"mpf-ball": (10, 2)}, contact_steps=4)
+    back = decode(json.loads(json.dumps(encode(result))))
+    assert isinstance(back, TrialResult) and back.projection == {"mpf-ball": (10, 2)}
+    np.testing.assert_array_equal(back.rmse_rad["cpf"], result.rmse_rad["cpf"])
+    flags = decode(encode(np.array([[True, False]])))
+    assert flags.dtype == bool and flags.shape == (1, 2)
+    with pytest.raises(ValueError, match="this project's classes"):
+        decode({"__dataclass__": "subprocess.Popen", "fields": {}})
+
+
+def test_the_store_drops_a_line_cut_short_and_refuses_other_settings(tmp_path):
+    store = TrialStore(tmp_path, "demo", {"seed": 1}, resume=False)
+    store.append("a", encode(1.5))
+    with open(tmp_path / TRIALS_FILE, "a") as f:
+        f.write('{"key": "b", "resu')  # killed mid-write
+    again = TrialStore(tmp_path, "demo", {"seed": 1}, resume=True)
+    assert again.done == {"a": 1.5}
+    again.append("b", encode(2.5))
+    assert TrialStore(tmp_path, "demo", {"seed": 1}, resume=True).done == {"a": 1.5, "b": 2.5}
+    with pytest.raises(ValueError, match=r"other settings \(seed: stored 1, now 2\)"):
+        TrialStore(tmp_path, "demo", {"seed": 2}, resume=True)
+    with pytest.raises(ValueError, match="written by study 'demo'"):
+        TrialStore(tmp_path, "other", {"seed": 1}, resume=True)
+    assert TrialStore(tmp_path, "demo", {"seed": 2}, resume=False).done == {}
+
+
+def test_only_missing_trials_run_and_results_come_back_in_job_order(tmp_path):
+    jobs = [Job(f"j{i}", (float(i), 2.0)) for i in range(5)]
+    store = TrialStore(tmp_path, "pow", {}, resume=False)
+    store.append("j3", encode(-1.0))  # a stored result is used, not recomputed
+    out = map_trials(operator.pow, jobs, backend=Backend("serial"), store=store,
+                     progress=False)
+    assert out == [0.0, 1.0, 4.0, -1.0, 16.0]
+    with pytest.raises(ValueError, match="unique"):
+        map_trials(operator.pow, jobs + jobs[:1], backend=Backend("serial"), progress=False)
+    with pytest.raises(ValueError, match="backend must be one of"):
+        Backend("threads")
+
+
+def _summary(path):
+    summary = json.loads((path / "summary.json").read_text())
+    for filters in summary["arms"].values():
+        for entry in filters.values():
+            if isinstance(entry, dict):
+                for key in TIMING_KEYS:
+                    entry.pop(key)
+    return summary
+
+
+def test_serial_processes_and_ray_give_the_same_study(tmp_path):
+    base = ["experiment", "configest", "--arm", "2dof", "--trials", "3", "--no-progress"]
+    for backend in ("serial", "processes", "ray"):
+        assert main(base + ["--backend", backend, "--workers", "2", "--out",
+                            str(tmp_path / backend)]) == 0
+    serial = _summary(tmp_path / "serial")
+    assert _summary(tmp_path / "processes") == serial
+    assert _summary(tmp_path / "ray") == serial
+
+
+def test_a_study_killed_part_way_and_resumed_gives_the_uninterrupted_summary(tmp_path):
+    args = ["experiment", "configest", "--arm", "2dof", "--trials", "4", "--backend",
+            "serial", "--no-progress"]
+    whole, killed = tmp_path / "whole", tmp_path / "killed"
+    assert main(args + ["--out", str(whole)]) == 0
+    child = subprocess.Popen([sys.executable, "-m", "cmanip.cli", *args, "--out",
+                              str(killed)], stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL)
+    trials = killed / TRIALS_FILE
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and child.poll() is None:
+        if trials.exists() and trials.read_text().count("\n") >= 3:  # header + 2 trials
+            break
+        time.sleep(0.05)
+    os.kill(child.pid, signal.SIGKILL)
+    child.wait()
+    kept = trials.read_text().count("\n") - 1
+    assert 2 <= kept < 4 and not (killed / "summary.json").exists()
+    assert main(args + ["--out", str(killed), "--resume"]) == 0
+    assert _summary(killed) == _summary(whole)
+    # a trials file from other settings is refused, not mixed in
+    assert main(args + ["--out", str(killed), "--resume", "--seed", "5"]) == 2
+
+
+def test_a_trials_file_of_other_settings_is_a_clear_error(tmp_path, capsys):
+    settings = ConfigestSettings(arms=("2dof",), trials=2)
+    TrialStore(tmp_path, "configest", {"seed": 9}, resume=False)
+    assert main(["experiment", "configest", "--arm", "2dof", "--trials",
+                 str(settings.trials), "--out", str(tmp_path), "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert TRIALS_FILE in err and "other settings" in err and "seed" in err
