@@ -28,6 +28,7 @@ import importlib
 import json
 import multiprocessing
 import os
+import signal
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -291,7 +292,7 @@ def _run_processes(fn, warm, jobs, backend, finished) -> None:
         _run_serial(fn, warm, jobs, backend, finished)
         return
     context = multiprocessing.get_context("spawn")
-    pool = context.Pool(min(backend.workers, len(jobs)))
+    pool = context.Pool(min(backend.workers, len(jobs)), initializer=_ignore_interrupts)
     try:
         for key, encoded in pool.imap_unordered(_call_job, [(fn, warm, j) for j in jobs]):
             finished(key, encoded)
@@ -301,6 +302,12 @@ def _run_processes(fn, warm, jobs, backend, finished) -> None:
         raise
     finally:
         pool.join()
+
+
+def _ignore_interrupts() -> None:
+    """In a pool worker: Ctrl-C reaches the whole process group, but only the parent
+    handles it (it stops the pool), so workers print no tracebacks of their own."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _run_ray(fn, warm, jobs, backend, finished) -> None:

@@ -121,3 +121,22 @@ def test_a_trials_file_of_other_settings_is_a_clear_error(tmp_path, capsys):
                  str(settings.trials), "--out", str(tmp_path), "--resume"]) == 2
     err = capsys.readouterr().err
     assert TRIALS_FILE in err and "other settings" in err and "seed" in err
+
+
+def test_ctrl_c_stops_the_workers_keeps_the_finished_trials_and_says_how_to_resume(tmp_path):
+    out = tmp_path / "ce"
+    child = subprocess.Popen(
+        [sys.executable, "-m", "cmanip.cli", "experiment", "configest", "--arm", "2dof",
+         "--trials", "6", "--workers", "2", "--no-progress", "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    trials = out / TRIALS_FILE
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and child.poll() is None:
+        if trials.exists() and trials.read_text().count("\n") >= 2:  # header + 1 trial
+            break
+        time.sleep(0.05)
+    child.send_signal(signal.SIGINT)
+    _, err = child.communicate(timeout=120)
+    assert child.returncode == 130
+    assert "interrupted" in err and "--resume" in err and "Traceback" not in err
+    assert 1 <= trials.read_text().count("\n") - 1 < 6
