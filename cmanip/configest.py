@@ -26,13 +26,7 @@ def register(commands) -> None:
                    type=int)
     setting_option(run, "--tactile-error-rate", "the arm file's sensor_error_rate",
                    "the tactile system's error rate during contact", type=float)
-    setting_option(run, "--constraints", defaults.constraints,
-                   "what MPF-Ball's projected duals satisfy (active: eq. 5.1; full: also "
-                   "the other sensors clear and the body out of penetration)",
-                   choices=("active", "full"))
-    setting_option(run, "--dual-share", defaults.dual_share,
-                   "the MPF's mass for its duals (fixed: phi, Alg. 4.2; density: phi scaled "
-                   "by the prior density the duals see)", choices=("fixed", "density"))
+    mpf_variant_options(run, defaults)
     setting_option(run, "--seed", defaults.seed, "seeds the offset, the sensor noise and "
                                                  "the estimators", type=int)
     run.add_argument("--out", type=Path, required=True,
@@ -41,6 +35,21 @@ def register(commands) -> None:
                      help="also keep the live Meshcat (localhost) up after the episode")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     run.set_defaults(handler=_run)
+
+
+def mpf_variant_options(parser, defaults) -> None:
+    """``--constraints`` and ``--dual-share``, the configuration MPF's variants beyond the
+    thesis (defaults from ``defaults``, a settings dataclass with both fields)."""
+    from estimation.configuration.projection import CONSTRAINTS
+    from estimation.particles.filters import DUAL_SHARES
+
+    setting_option(parser, "--constraints", defaults.constraints,
+                   "what a projected dual satisfies (active: the lit sensors touch, eq. "
+                   "5.1; full: also every other sensor clear, the body out of penetration)",
+                   choices=CONSTRAINTS)
+    setting_option(parser, "--dual-share", defaults.dual_share,
+                   "the MPF's mass for its duals (fixed: phi, Alg. 4.2; density: phi scaled "
+                   "by the posterior density the duals see)", choices=DUAL_SHARES)
 
 
 def _run(args: argparse.Namespace) -> int:

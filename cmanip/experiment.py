@@ -27,6 +27,7 @@ from cmanip.config import (
     overridden,
     write_config,
 )
+from cmanip.configest import mpf_variant_options
 from cmanip.options import (
     backend_of,
     runner_options,
@@ -160,13 +161,7 @@ def _register_configest(studies) -> None:
                    choices=("lm", "gd"))
     setting_option(ce, "--ball-radius", "three kernel bandwidths",
                    "MPF-Ball's r_b (rad)", type=float)
-    setting_option(ce, "--constraints", defaults.constraints,
-                   "what a projected dual satisfies (active: the lit sensors touch, eq. "
-                   "5.1; full: also every other sensor clear, the body out of penetration)",
-                   choices=("active", "full"))
-    setting_option(ce, "--dual-share", defaults.dual_share,
-                   "the MPF's mass for its duals (fixed: phi, Alg. 4.2; density: phi scaled "
-                   "by the posterior density the duals see)", choices=("fixed", "density"))
+    mpf_variant_options(ce, defaults)
     runner_options(ce)
     ce.add_argument("--out", type=Path, required=True,
                     help="output directory (summary.json, configest.png, config.yaml, "

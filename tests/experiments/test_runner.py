@@ -70,6 +70,16 @@ def test_only_missing_trials_run_and_results_come_back_in_job_order(tmp_path):
         Backend("threads")
 
 
+def _wait_for_trials(child: subprocess.Popen, trials, count: int) -> None:
+    """Until ``trials`` holds ``count`` finished trials (after its header line), the child
+    ends, or five minutes pass."""
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and child.poll() is None:
+        if trials.exists() and trials.read_text().count("\n") >= 1 + count:
+            return
+        time.sleep(0.05)
+
+
 def _summary(path):
     summary = json.loads((path / "summary.json").read_text())
     for filters in summary["arms"].values():
@@ -99,11 +109,7 @@ def test_a_study_killed_part_way_and_resumed_gives_the_uninterrupted_summary(tmp
                               str(killed)], stdout=subprocess.DEVNULL,
                              stderr=subprocess.DEVNULL)
     trials = killed / TRIALS_FILE
-    deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and child.poll() is None:
-        if trials.exists() and trials.read_text().count("\n") >= 3:  # header + 2 trials
-            break
-        time.sleep(0.05)
+    _wait_for_trials(child, trials, 2)
     os.kill(child.pid, signal.SIGKILL)
     child.wait()
     kept = trials.read_text().count("\n") - 1
@@ -130,11 +136,7 @@ def test_ctrl_c_stops_the_workers_keeps_the_finished_trials_and_says_how_to_resu
          "--trials", "6", "--workers", "2", "--no-progress", "--out", str(out)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     trials = out / TRIALS_FILE
-    deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and child.poll() is None:
-        if trials.exists() and trials.read_text().count("\n") >= 2:  # header + 1 trial
-            break
-        time.sleep(0.05)
+    _wait_for_trials(child, trials, 1)
     child.send_signal(signal.SIGINT)
     _, err = child.communicate(timeout=120)
     assert child.returncode == 130
