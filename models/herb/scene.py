@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from models.config import Fields, relative_to_file, resolve_asset
+from models.config import ConfigError, Fields, relative_to_file, resolve_asset
 from models.contact import OBSTACLE_MATERIAL
 from models.objects import ObjectSpec
 
@@ -128,6 +128,12 @@ class SceneSpec:
         object_f = fields.sub("object")
         scene_object = relative_to_file(path, object_f.string("name"))
         object_name = object_override or scene_object
+        try:
+            scene_object_spec = ObjectSpec.load(object_name)
+        except ConfigError as err:
+            if object_override is not None or str(path) in str(err):
+                raise
+            raise object_f.error("name", str(err)) from None  # say which scene named it
         object_pose = PlanarPose.from_fields(object_f.sub("pose"))
         object_f.done()
         hand_f = fields.sub("hand")
@@ -150,7 +156,7 @@ class SceneSpec:
             description=fields.string("description", ""),
             arm=fields.string("arm", "right", choices=ARMS),
             table=table,
-            object=ObjectSpec.load(object_name),
+            object=scene_object_spec,
             object_pose=object_pose,
             hand_height_m=hand_height,
             hand_start=hand_start,

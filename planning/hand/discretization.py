@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from models.config import Fields, resolve_asset
+from models.config import ConfigError, Fields, resolve_asset
 from models.planar.cspace import c_obstacle
 from models.planar.world import PlanarWorld
 
@@ -104,6 +104,15 @@ class HandProblemSpec:
         problem file overrides the thesis' ch. 6 problem (``cell_theta_deg`` in degrees;
         ``actions``: a mapping of names to [x, y] directions in units of ``step_m``)."""
         fields = Fields.from_file(resolve_asset("problems", path))
+        try:
+            return HandProblemSpec._from_fields(fields)
+        except ConfigError:
+            raise
+        except ValueError as err:  # the spec's own checks, which know no file
+            raise ConfigError(fields.source, "", str(err)) from None
+
+    @staticmethod
+    def _from_fields(fields: Fields) -> HandProblemSpec:
         default = HandProblemSpec()
         names, directions = default.action_names, default.action_directions
         if fields.has("actions"):

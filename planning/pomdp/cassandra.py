@@ -60,9 +60,12 @@ def read_pomdp(path: str | Path) -> TabularPOMDP:
     """Read a ``.pomdp`` file; raises :class:`PomdpFormatError` on malformed input."""
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except OSError as err:
         raise PomdpFormatError(str(path), 0, f"cannot read: {err}") from err
+    except UnicodeDecodeError as err:
+        raise PomdpFormatError(str(path), 0, f"not UTF-8 text (byte {err.start}: "
+                                             f"{err.reason})") from None
     return _Parser(str(path), text).parse()
 
 
@@ -101,9 +104,12 @@ class _Parser:
     def number(self) -> float:
         line, tok = self.take()
         try:
-            return float(tok)
+            value = float(tok)
         except ValueError:
             raise self.error(f"expected a number, got '{tok}'", line) from None
+        if not np.isfinite(value):
+            raise self.error(f"expected a finite number, got '{tok}'", line)
+        return value
 
     def numbers(self, count: int) -> np.ndarray:
         return np.array([self.number() for _ in range(count)])
@@ -279,9 +285,12 @@ class _Parser:
             raise self.error(f"start: expected {S} probabilities, 'uniform' or a state name",
                              tokens[0][0])
         try:
-            return np.array([float(tok) for _, tok in tokens])
+            start = np.array([float(tok) for _, tok in tokens])
         except ValueError:
             raise self.error("start: expected numbers", tokens[0][0]) from None
+        if not np.isfinite(start).all():
+            raise self.error("start: expected finite numbers", tokens[0][0])
+        return start
 
 
 KEYWORDS = ("discount", "values", "states", "actions", "observations", "start", "T", "O", "R")

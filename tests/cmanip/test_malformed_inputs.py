@@ -1,0 +1,37 @@
+"""``cmanip bench robustness``: mutated input files end in clear errors naming the file."""
+
+import json
+
+from cmanip.cli import main
+from cmanip.malformed import FileKind, classify, table_mutations, yaml_mutations
+
+
+def test_every_kind_of_mutated_file_ends_in_a_clear_error_or_loads(tmp_path):
+    report = tmp_path / "robust.json"
+    assert main(["bench", "robustness", "--limit-per-kind", "40", "--no-progress",
+                 "--json", str(report)]) == 0
+    result = json.loads(report.read_text())
+    assert result["malformed_tried"] >= 500
+    assert len(result["kinds"]) >= 15
+    assert result["malformed_other"] == 0, result["other_cases"]
+    assert result["malformed_clear_error"] + result["malformed_accepted"] == \
+        result["malformed_tried"]
+
+
+def test_mutations_cover_fields_and_lines_and_classify_can_fail(tmp_path):
+    labels = [label for label, _ in yaml_mutations("a: 1\nb: {c: 2}\n")]
+    assert "b.c: removed" in labels and "b: extra field" in labels and "a: nan" in labels
+    lines = [label for label, _ in table_mutations("x 1.5\ny 2\n")]
+    assert "line 1: 1.5 -> abc" in lines and "line 2: removed" in lines
+    path = tmp_path / "f.txt"
+    path.write_text("x")
+
+    def crash(p):
+        raise KeyError("boom")
+
+    def vague(p):
+        raise ValueError("bad value")
+
+    assert classify(FileKind("k", ".txt", (), crash), path)[0] == "other"
+    assert classify(FileKind("k", ".txt", (), vague), path)[0] == "other"
+    assert classify(FileKind("k", ".txt", (), lambda p: None), path)[0] == "accepted"
