@@ -165,6 +165,10 @@ class PushLog:
         except ValueError as err:
             raise LogFormatError(f"{path}: rod_radius_m and contact_threshold_n must be "
                                  f"numbers ({err})") from err
+        for key, value in (("rod_radius_m", radius), ("contact_threshold_n", threshold)):
+            if not (np.isfinite(value) and value > 0):
+                raise LogFormatError(f"{path}: header field '{key}' must be a positive "
+                                     f"finite number, got {meta[key]!r}")
 
         def stack(*names):
             return np.column_stack([col[n] for n in names])
