@@ -192,7 +192,9 @@ def _configest(args: argparse.Namespace) -> int:
             if not isinstance(entry, dict):
                 continue
             fail = entry.get("projection_failure_rate")
-            extra = f", projection failures {fail:.0%}" if fail is not None else ""
+            extra = "" if fail is None else (
+                f", projection failures {fail:.0%}; paired with the CPF "
+                f"{entry['vs_cpf_rad_mean']:+.3f} +- {entry['vs_cpf_rad_mean_ci95']:.3f} rad")
             print(f"  {kind:13s} RMSE mean {entry['rmse_rad_mean']:.3f} "
                   f"+- {entry['rmse_rad_mean_ci95']:.3f} rad, final "
                   f"{entry['rmse_rad_final']:.3f} +- {entry['rmse_rad_final_ci95']:.3f} rad, "

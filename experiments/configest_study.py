@@ -210,8 +210,12 @@ def trial_store(settings: ConfigestSettings, out: Path, *, resume: bool) -> Tria
 
 def summarise_arm(arm: str, results: list[TrialResult]) -> dict:
     """Per filter: mean and final RMSE over trials with 95 % half-widths, the update time,
-    the projection failure rate, and the mean curve."""
+    the projection failure rate, and the mean curve; for the MPF variants also the paired
+    difference to the CPF (``vs_cpf_rad_mean``, ``vs_cpf_rad_final`` with ``_ci95``: every
+    filter runs on the same experiments, so the per-experiment difference removes the
+    spread between experiments that the unpaired intervals carry)."""
     out = {}
+    cpf = np.array([r.rmse_rad["cpf"] for r in results])
     for kind in filters_for(arm):
         curves = np.array([r.rmse_rad[kind] for r in results])  # (trials, T)
         means, finals = curves.mean(axis=1), curves[:, -1]
@@ -228,6 +232,11 @@ def summarise_arm(arm: str, results: list[TrialResult]) -> dict:
             seeds = sum(r.projection[kind][0] for r in results)
             failures = sum(r.projection[kind][1] for r in results)
             entry["projection_failure_rate"] = failures / seeds if seeds else 0.0
+            diff = curves - cpf
+            entry["vs_cpf_rad_mean"] = float(diff.mean())
+            entry["vs_cpf_rad_mean_ci95"] = half_width(diff.mean(axis=1))
+            entry["vs_cpf_rad_final"] = float(diff[:, -1].mean())
+            entry["vs_cpf_rad_final_ci95"] = half_width(diff[:, -1])
         out[kind] = entry
     return out
 

@@ -21,6 +21,9 @@ def test_configest_study_writes_the_summary_the_issue_asks_for(tmp_path):
                     "rmse_rad_final_ci95"):
             assert entry[key] >= 0
         assert ("projection_failure_rate" in entry) == (kind != "cpf")
+        if kind != "cpf":  # paired with the CPF on the same experiments
+            assert abs(entry["vs_cpf_rad_mean"] - (entry["rmse_rad_mean"]
+                                                   - filters["cpf"]["rmse_rad_mean"])) < 1e-9
     assert "H2_alike_at_2dof" in summary["hypotheses"]
     assert (out / "configest.png").stat().st_size > 10_000
     replayed = load_config(ConfigestSettings, out / "config.yaml")  # replays the run
