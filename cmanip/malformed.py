@@ -52,7 +52,7 @@ class FileKind:
     Attributes:
         name: the kind (``object``, ``scene``...).
         suffix: the file name's ending.
-        valid: valid files of the kind (paths or ``(name, text)`` pairs).
+        valid: paths of valid files of the kind.
         load: reads a file; raises on a bad one.
         structured: YAML (mutated by field) or a text table (by line).
     """
@@ -93,6 +93,7 @@ def file_kinds(work: Path) -> list[FileKind]:
     from models.herb.tactile import TactileLayout
     from models.objects import ObjectSpec
     from models.planar.hand import PlanarSensorLayout
+    from models.pusher.log import PushLog
     from models.pusher.rig import PusherSliderRig
     from planning.hand.discretization import HandProblemSpec
     from planning.pomdp.benchmarks import tiger
@@ -110,7 +111,6 @@ def file_kinds(work: Path) -> list[FileKind]:
     _push_log().write(log)
     pomdp = work / "tiger.pomdp"
     write_pomdp(tiger(), pomdp)
-    from models.pusher.log import PushLog
 
     def assets(folder: str) -> tuple[Path, ...]:
         return tuple(sorted((ASSETS / folder).glob("*.yaml")))
