@@ -222,21 +222,15 @@ def _differing(stored: dict, now: dict) -> str:
 
 # ------------------------------------------------------------------------ the runner
 
-def _call(fn: Callable, warm: tuple | None, args: tuple) -> Any:
-    """Run one trial in a worker: warm its caches (idempotent), then the trial, encoded."""
-    if warm is not None:
-        warm[0](*warm[1])
-    return encode(fn(*args))
-
-
-def _call_job(payload: tuple) -> tuple[str, Any]:
-    fn, warm, job = payload
-    return job.key, _call(fn, warm, job.args)
+def _call_job(payload: tuple[Callable, Job]) -> tuple[str, Any]:
+    """Run one trial in a worker; its key and its encoded result."""
+    fn, job = payload
+    return job.key, encode(fn(*job.args))
 
 
 def map_trials(fn: Callable, jobs: Sequence[Job], *, backend: Backend,
-               store: TrialStore | None = None, warm: tuple | None = None,
-               desc: str = "trials", progress: bool = True) -> list:
+               store: TrialStore | None = None, desc: str = "trials",
+               progress: bool = True) -> list:
     """``fn(*job.args)`` for every job, in job order, on ``backend``.
 
     Args:
@@ -244,8 +238,6 @@ def map_trials(fn: Callable, jobs: Sequence[Job], *, backend: Backend,
         jobs: the trials; keys unique.
         backend: where they run.
         store: where finished trials go (and which are already done).
-        warm: ``(function, args)`` run before each trial in its worker to build what the
-            trials share (cached per process by the study, so cheap after the first).
         desc: the progress bar's label.
         progress: show one bar (trials done, rate, ETA) whatever the backend.
 
@@ -257,9 +249,10 @@ def map_trials(fn: Callable, jobs: Sequence[Job], *, backend: Backend,
         TrialsInterrupted: on Ctrl-C, after stopping the workers (finished trials kept).
     """
     keys = [job.key for job in jobs]
-    if len(set(keys)) != len(keys):
+    wanted = set(keys)
+    if len(wanted) != len(keys):
         raise ValueError("trial keys must be unique")
-    done = {} if store is None else {k: v for k, v in store.done.items() if k in set(keys)}
+    done = {} if store is None else {k: v for k, v in store.done.items() if k in wanted}
     pending = [job for job in jobs if job.key not in done]
     bar = tqdm(total=len(jobs), initial=len(done), desc=desc, unit="trial",
                disable=not progress, smoothing=0.1)
@@ -273,7 +266,7 @@ def map_trials(fn: Callable, jobs: Sequence[Job], *, backend: Backend,
     run = {"serial": _run_serial, "processes": _run_processes, "ray": _run_ray}[backend.kind]
     try:
         if pending:
-            run(fn, warm, pending, backend, finished)
+            run(fn, pending, backend, finished)
     except KeyboardInterrupt:
         raise TrialsInterrupted(len(done), len(jobs),
                                 None if store is None else store.path) from None
@@ -282,19 +275,19 @@ def map_trials(fn: Callable, jobs: Sequence[Job], *, backend: Backend,
     return [decode(done[key]) for key in keys]
 
 
-def _run_serial(fn, warm, jobs, backend, finished) -> None:
+def _run_serial(fn, jobs, backend, finished) -> None:
     for job in jobs:
-        finished(*_call_job((fn, warm, job)))
+        finished(*_call_job((fn, job)))
 
 
-def _run_processes(fn, warm, jobs, backend, finished) -> None:
+def _run_processes(fn, jobs, backend, finished) -> None:
     if backend.workers == 1:
-        _run_serial(fn, warm, jobs, backend, finished)
+        _run_serial(fn, jobs, backend, finished)
         return
     context = multiprocessing.get_context("spawn")
     pool = context.Pool(min(backend.workers, len(jobs)), initializer=_ignore_interrupts)
     try:
-        for key, encoded in pool.imap_unordered(_call_job, [(fn, warm, j) for j in jobs]):
+        for key, encoded in pool.imap_unordered(_call_job, [(fn, j) for j in jobs]):
             finished(key, encoded)
         pool.close()
     except BaseException:
@@ -310,7 +303,7 @@ def _ignore_interrupts() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _run_ray(fn, warm, jobs, backend, finished) -> None:
+def _run_ray(fn, jobs, backend, finished) -> None:
     import ray  # the only import of Ray in the project
 
     started = not ray.is_initialized()
@@ -326,7 +319,7 @@ def _run_ray(fn, warm, jobs, backend, finished) -> None:
     task = ray.remote(num_cpus=1, max_retries=2)(_call_job)
     waiting = []
     try:
-        waiting = [task.remote((fn, warm, job)) for job in jobs]
+        waiting = [task.remote((fn, job)) for job in jobs]
         while waiting:
             ready, waiting = ray.wait(waiting, num_returns=1)
             finished(*ray.get(ready[0]))

@@ -35,3 +35,8 @@ def test_mutations_cover_fields_and_lines_and_classify_can_fail(tmp_path):
     assert classify(FileKind("k", ".txt", (), crash), path)[0] == "other"
     assert classify(FileKind("k", ".txt", (), vague), path)[0] == "other"
     assert classify(FileKind("k", ".txt", (), lambda p: None), path)[0] == "accepted"
+
+
+def test_a_limit_below_one_is_a_clear_error(capsys):
+    assert main(["bench", "robustness", "--limit-per-kind", "0"]) == 2
+    assert "--limit-per-kind must be >= 1" in capsys.readouterr().err

@@ -135,3 +135,12 @@ def test_a_trials_file_of_other_settings_is_a_clear_error(tmp_path, capsys):
     err = capsys.readouterr().err
     assert TRIALS_FILE in err and "other settings" in err and "seed" in err
 
+
+
+def test_runner_options_out_of_place_are_clear_errors(tmp_path, capsys):
+    assert main(MPF + ["--trials", "2", "--address", "auto", "--out", str(tmp_path)]) == 2
+    assert "--address is for the ray backend" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        main(MPF + ["--trials", "2", "--workers", "0", "--out", str(tmp_path)])
+    assert exit_.value.code == 2
+    assert "must be >= 1" in capsys.readouterr().err
