@@ -144,23 +144,25 @@ class FilterRun:
     projection: ProjectionStats | None
 
 
+def build_filter(world: ArmWorld, kind: str, settings: ConfigestSettings):
+    """Filter ``kind`` (one of :data:`FILTERS`) for ``world``: the filter, the particles
+    it propagates (the MPF's n_c) and its manifold (None for the CPF)."""
+    if kind == "cpf":
+        return make_filter("cpf", world), settings.particles, None
+    strategy = kind.split("-", 1)[1]
+    manifold = (ExplicitTwoLinkManifold(world) if strategy == "explicit" else
+                ProjectionManifold(world, strategy=strategy, method=settings.method,
+                                   ball_radius_rad=settings.ball_radius_rad,
+                                   constraints=settings.constraints))
+    filt = make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
+                       mixing_rate=settings.mixing_rate, dual_share=settings.dual_share)
+    return filt, settings.particles - settings.dual_particles, manifold
+
+
 def run_filter(world: ArmWorld, trajectory, kind: str, settings: ConfigestSettings, *,
                rng: np.random.Generator) -> FilterRun:
     """Filter ``kind`` (one of :data:`FILTERS`) along one simulated experiment."""
-    manifold = None
-    if kind == "cpf":
-        filt = make_filter("cpf", world)
-        n = settings.particles
-    else:
-        strategy = kind.split("-", 1)[1]
-        manifold = (ExplicitTwoLinkManifold(world) if strategy == "explicit" else
-                    ProjectionManifold(world, strategy=strategy, method=settings.method,
-                                       ball_radius_rad=settings.ball_radius_rad,
-                                       constraints=settings.constraints))
-        filt = make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
-                           mixing_rate=settings.mixing_rate,
-                           dual_share=settings.dual_share)
-        n = settings.particles - settings.dual_particles
+    filt, n, manifold = build_filter(world, kind, settings)
     belief = ParticleBelief.uniform(
         world.initial_belief_states(trajectory.encoders[0], n, rng=rng), world.angular)
     rmse, times = [], []

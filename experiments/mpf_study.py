@@ -145,9 +145,26 @@ def initial_belief_mean(settings: TrialSettings, rng: np.random.Generator) -> np
                      rng.uniform(-np.pi, np.pi)])
 
 
-def run_trial(settings: TrialSettings, filters: tuple[FilterSpec, ...], study_seed: int,
-              trial: int) -> TrialResult:
-    """Run every filter on one trial's truth; reproducible from (study_seed, trial)."""
+@dataclass(frozen=True)
+class TrialTruth:
+    """One trial's simulated push (sec. 4.3.1).
+
+    Attributes:
+        mean, std: (3,) the belief's mean and standard deviations (m, m, rad).
+        action: (3,) the hand's motion per update (m, m, rad).
+        true_states: (T, 3) the object's pose in the hand frame after each update.
+        observations: (T, S) bool, the sensors' readings after each update.
+    """
+
+    mean: np.ndarray
+    std: np.ndarray
+    action: np.ndarray
+    true_states: np.ndarray
+    observations: np.ndarray
+
+
+def simulate_truth(settings: TrialSettings, study_seed: int, trial: int) -> TrialTruth:
+    """The push of trial ``trial``, seeded from (study_seed, trial, 0)."""
     world = _world(settings.object, settings.sensors)
     truth_rng = np.random.default_rng([study_seed, trial, 0])
     mean = initial_belief_mean(settings, truth_rng)
@@ -159,7 +176,16 @@ def run_trial(settings: TrialSettings, filters: tuple[FilterSpec, ...], study_se
         state = world.sample_step(state, action, rng=truth_rng)
         true_states.append(state[0])
         observations.append(world.sample_observation(state, truth_rng.random((1, 2)))[0])
-    true_states = np.array(true_states)
+    return TrialTruth(mean, std, action, np.array(true_states), np.array(observations))
+
+
+def run_trial(settings: TrialSettings, filters: tuple[FilterSpec, ...], study_seed: int,
+              trial: int) -> TrialResult:
+    """Run every filter on one trial's truth; reproducible from (study_seed, trial)."""
+    world = _world(settings.object, settings.sensors)
+    truth = simulate_truth(settings, study_seed, trial)
+    mean, std, action = truth.mean, truth.std, truth.action
+    true_states, observations = truth.true_states, truth.observations
     reading_correct = (world.sensing.true_contacts(true_states) == np.array(observations)).all(1)
     touching = world.in_contact(true_states)
     contact_index = int(np.argmax(touching)) if touching.any() else None
@@ -169,7 +195,7 @@ def run_trial(settings: TrialSettings, filters: tuple[FilterSpec, ...], study_se
     observed, failed, dual = (np.zeros((F, T), dtype=bool) for _ in range(3))
     for f, spec in enumerate(filters):
         rng = np.random.default_rng([study_seed, trial, 1, f])
-        estimator = _make_filter(world, settings, spec, mean, std, action, study_seed, rng)
+        estimator = build_filter(world, settings, spec, mean, std, action, study_seed, rng)
         belief = ParticleBelief.uniform(
             world.sample_gaussian(mean, std, settings.particles, rng=rng))
         for t in range(T):
@@ -180,7 +206,10 @@ def run_trial(settings: TrialSettings, filters: tuple[FilterSpec, ...], study_se
     return TrialResult(contact_index, reading_correct, rmse_m, rmse_rad, observed, failed, dual)
 
 
-def _make_filter(world, settings, spec, mean, std, action, study_seed, rng):
+def build_filter(world, settings: TrialSettings, spec: FilterSpec, mean, std, action,
+                 study_seed: int, rng: np.random.Generator):
+    """The filter of ``spec`` for a trial: the CPF, or the MPF with the AM, RS (the
+    study's shared set) or TR (this trial's rollouts from the belief) manifold."""
     if spec.kind == "cpf":
         return make_filter("cpf", world)
     if spec.kind == "am":

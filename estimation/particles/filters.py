@@ -53,12 +53,39 @@ class UpdateDiagnostics:
         sampling_failed: every dual sample had p(o | s) < 0.1 (sec. 4.3.5).
         degenerate: no predicted particle could explain the observation (all likelihoods
             zero); the predicted particles kept their prior weights.
+        rejected: ``""``, or the input that was not finite and was not used:
+            ``"action"`` (the update was skipped, the belief kept as it was) or
+            ``"observation"`` (the belief was propagated and not weighted).
     """
 
     contact_observed: bool
     dual_used: bool = False
     sampling_failed: bool = False
     degenerate: bool = False
+    rejected: str = ""
+
+
+def non_finite_input(action: np.ndarray, observation: np.ndarray) -> str:
+    """Which input of an update holds a NaN or infinity: ``"action"``, ``"observation"``
+    or ``""``. A sensor driver's dropout or a bad transform arrives as such a value; a
+    filter that used it would turn every particle into NaN, so it is reported and left
+    out instead (a reading is checked only when it is numeric: booleans are finite)."""
+    if not np.all(np.isfinite(np.asarray(action, dtype=float))):
+        return "action"
+    reading = np.asarray(observation)
+    if reading.dtype.kind in "fc" and not np.all(np.isfinite(reading)):
+        return "observation"
+    return ""
+
+
+def _unweighted(belief: ParticleBelief, predicted: np.ndarray, rejected: str
+                ) -> tuple[ParticleBelief, UpdateDiagnostics]:
+    """The update when an input was rejected: the belief as it was (no action) or its
+    prediction with the prior weights (no reading)."""
+    if rejected == "action":
+        return belief, UpdateDiagnostics(False, rejected=rejected)
+    return (ParticleBelief(predicted, np.array(belief.log_weights), belief.angular),
+            UpdateDiagnostics(False, rejected=rejected))
 
 
 def _normalised(log_w: np.ndarray) -> np.ndarray | None:
@@ -81,7 +108,12 @@ class ConventionalParticleFilter:
 
     def update(self, belief: ParticleBelief, action: np.ndarray, observation: np.ndarray, *,
                rng: np.random.Generator) -> tuple[ParticleBelief, UpdateDiagnostics]:
+        rejected = non_finite_input(action, observation)
+        if rejected == "action":
+            return _unweighted(belief, np.asarray(belief.states), rejected)
         predicted = self.world.sample_step(np.array(belief.states), action, rng=rng)
+        if rejected:
+            return _unweighted(belief, predicted, rejected)
         log_w = belief.log_weights + self.world.log_likelihood(observation, predicted, action)
         degenerate = _normalised(log_w) is None
         if degenerate:
@@ -142,8 +174,13 @@ class ManifoldParticleFilter:
     def update(self, belief: ParticleBelief, action: np.ndarray, observation: np.ndarray, *,
                rng: np.random.Generator) -> tuple[ParticleBelief, UpdateDiagnostics]:
         phi = self.mixing_rate
-        observation = np.asarray(observation, dtype=bool)
+        rejected = non_finite_input(action, observation)
+        if rejected == "action":
+            return _unweighted(belief, np.asarray(belief.states), rejected)
         predicted = self.world.sample_step(np.array(belief.states), action, rng=rng)
+        if rejected:
+            return _unweighted(belief, predicted, rejected)
+        observation = np.asarray(observation, dtype=bool)
         prior_w = belief.weights
         cpf_ll = self.world.log_likelihood(observation, predicted, action)
         cpf = _normalised(belief.log_weights + cpf_ll)

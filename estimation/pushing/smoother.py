@@ -63,6 +63,9 @@ from estimation.pushing.costs import (
 from estimation.pushing.inputs import PushingSteps
 from estimation.pushing.noise import COSTS, PushingNoise
 
+MIN_CONTACT_FORCE_N = 1e-9
+"""A rod reading contact with less force than this (N) is left out (see ``_usable``)."""
+
 #: iSAM2's relinearisation threshold in "fluid" mode (m, m, rad of a pose's update).
 FLUID_THRESHOLD = 1e-3
 
@@ -137,6 +140,11 @@ class VisuoTactileSmoother:
         noise: the costs' covariances.
         settings: history, relinearisation, costs.
         rod_radius_m: the rods' radius (m).
+
+    Attributes:
+        update_seconds, rebuild_seconds: wall time of each update and window rebuild (s).
+        rejected_inputs: rod readings and camera poses left out because they were not
+            finite (:meth:`step` goes on without them).
     """
 
     def __init__(self, polygon: np.ndarray, noise: PushingNoise,
@@ -171,6 +179,7 @@ class VisuoTactileSmoother:
         self._isam = None
         self.update_seconds: list[float] = []
         self.rebuild_seconds: list[float] = []
+        self.rejected_inputs = 0
 
     @property
     def started(self) -> bool:
@@ -214,6 +223,8 @@ class VisuoTactileSmoother:
         """
         if not self.started:
             raise RuntimeError("call start() first")
+        rods, forces, contact, vision, unknown = self._usable(rods, forces, contact,
+                                                              vision)
         begin = time.perf_counter()
         costs = self.settings.costs
         self._k += 1
@@ -221,7 +232,8 @@ class VisuoTactileSmoother:
         own, linking = [], []
         previous = self._previous_inputs
         if "stationary" in costs:
-            pushed = bool(np.any(contact)) or (previous is not None and previous[2].any())
+            pushed = bool(np.any(contact)) or unknown or (previous is not None
+                                                          and previous[2].any())
             linking.append(self._stationary(k, pushed))
         if "motion" in costs and previous is not None and previous[2].any():
             touching = previous[2]
@@ -256,6 +268,35 @@ class VisuoTactileSmoother:
         self._estimate = np.array([estimate.x(), estimate.y(), estimate.theta()])
         self.update_seconds.append(time.perf_counter() - begin)
         return self._estimate
+
+    def _usable(self, rods, forces, contact, vision):
+        """The step's inputs with every unusable one left out, each counted in
+        :attr:`rejected_inputs`: a rod whose centre or force holds a NaN or infinity, or
+        that reads contact with no force (the contact cost needs the force's direction),
+        has its contact and motion costs dropped, and the step's stationary prior is the
+        pushed one (the rod may be pushing: taking it as free would hold the object still
+        against the camera); a camera pose with a NaN or infinity is taken as no camera
+        frame. A factor with a NaN measurement would make the whole window's solution NaN.
+
+        Returns:
+            rods, forces, contact, vision as :meth:`step` takes them, and whether a rod's
+            reading was left out.
+        """
+        rods = np.asarray(rods, dtype=float)
+        forces = np.asarray(forces, dtype=float)
+        contact = np.array(contact, dtype=bool)
+        finite = np.isfinite(rods).all(axis=1) & np.isfinite(forces).all(axis=1)
+        bad = ~finite | (contact & (np.abs(np.where(finite[:, None], forces, 1.0))
+                                    .sum(axis=1) < MIN_CONTACT_FORCE_N))
+        if bad.any():
+            self.rejected_inputs += int(bad.sum())
+            contact &= ~bad
+            rods = np.where(bad[:, None], 0.0, rods)
+            forces = np.where(bad[:, None], 0.0, forces)
+        if vision is not None and not np.all(np.isfinite(vision)):
+            self.rejected_inputs += 1
+            vision = None
+        return rods, forces, contact, vision, bool(bad.any())
 
     def run(self, steps: PushingSteps, *, start: np.ndarray | None = None) -> np.ndarray:
         """Estimate every step of ``steps``; (K, 3), nan before the first camera pose (or

@@ -1,0 +1,322 @@
+"""Estimators under faults (part of ``cmanip bench robustness``).
+
+Every estimator of the project is run twice on the same simulated experiment with the same
+random numbers: once clean, once with one fault injected into its inputs for a stretch of
+steps. A fault is *recovered* when the faulty run never produced a non-finite estimate and
+its error over the last quarter of the run is at most ``max(1.5 x clean, clean + tol)``:
+the estimator came back to where the clean run is, give or take what a different draw of
+the same filter gives.
+
+Estimators and faults:
+
+- the hand-relative filters of ch. 4 (CPF, MPF with the AM, RS and TR manifolds) on the
+  MPF study's push (:mod:`experiments.mpf_study`), and the configuration filters of ch. 5
+  (CPF, MPF-Ball) on the 3-DOF arm (:mod:`experiments.configest_study`), each with
+  ``nan-action`` (the hand's or the arm's commanded motion arrives as NaN: the filter skips
+  the update and reports it), ``nan-reading`` (the contact reading arrives as NaN: the
+  filter propagates without weighting and reports it), ``all-sensors-on`` (every sensor
+  lit at once: a reading no particle explains; the CPF keeps its prediction and reports a
+  degenerate update, the MPF draws from the manifold), ``stuck-on`` (one sensor reads
+  contact whatever happens), ``stuck-off`` (every sensor reads free during contact) and
+  ``contradicting`` (all on, all off, alternating, for twice as long). The faults start
+  two steps after the first true contact; tol is 1 cm (hand) and 0.1 rad (arm).
+- the visuo-tactile smoother (seed 003) on a simulated push of rect1, with ``nan-force``,
+  ``nan-camera`` (both left out and counted in ``rejected_inputs``), ``teleported-camera``
+  (camera poses 30 cm and 1 rad off: no pose explains them; the vision cost's Huber kernel
+  bounds their pull), ``dropped-frames`` (no camera frame for the stretch: the tactile
+  costs carry the estimate) and ``stuck-contact`` (both force sensors freeze, reading
+  contact with the force of the step before); tol is 5 mm.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+from tqdm import tqdm
+
+from estimation.configuration.belief import joint_rmse
+from estimation.particles.belief import ParticleBelief
+from estimation.pushing.inputs import PushingSteps
+from estimation.pushing.noise import identify_from_runs
+from estimation.pushing.smoother import VisuoTactileSmoother, recommended_settings
+from experiments.configest_study import ConfigestSettings, arm_world, build_filter
+from experiments.mpf_study import FilterSpec, TrialSettings, simulate_truth
+from experiments.mpf_study import build_filter as build_hand_filter
+from models.objects import ObjectSpec
+from models.planar.world import PlanarWorld
+
+FILTER_FAULTS = ("nan-action", "nan-reading", "all-sensors-on", "stuck-on", "stuck-off",
+                 "contradicting")
+SMOOTHER_FAULTS = ("nan-force", "nan-camera", "teleported-camera", "dropped-frames",
+                   "stuck-contact")
+FAULT_STEPS = 10
+"""Length of a fault (updates); ``contradicting`` lasts twice as long."""
+SMOOTHER_FAULT_S = 1.0
+"""Length of a smoother fault (s)."""
+RECOVERY_FACTOR = 1.5
+HAND_FILTERS = (FilterSpec("cpf", "cpf"), FilterSpec("mpf-am", "am"),
+                FilterSpec("mpf-rs", "rs"), FilterSpec("mpf-tr", "tr"))
+ARM_FILTERS = ("cpf", "mpf-ball")
+TOLERANCE = {"hand": 0.01, "arm": 0.1, "smoother": 0.005}
+"""tol of the recovery rule per family (m, rad, m)."""
+
+
+@dataclass(frozen=True)
+class FaultOutcome:
+    """One injected fault.
+
+    Attributes:
+        estimator: e.g. ``hand/mpf-am``, ``arm/cpf``, ``smoother``.
+        fault: its name; trial: the experiment it was injected into.
+        finite: every estimate of the faulty run was finite.
+        reported: the estimator flagged it (None where a fault is not detectable as such:
+            a stuck sensor reads like a real one).
+        error_during, error_after, clean_after: mean error during the fault and over the
+            last quarter of the run, faulty and clean (m or rad).
+        recovered: finite and error_after within the recovery rule.
+    """
+
+    estimator: str
+    fault: str
+    trial: int
+    finite: bool
+    reported: bool | None
+    error_during: float
+    error_after: float
+    clean_after: float
+    recovered: bool
+
+
+def _recovered(finite: bool, after: float, clean: float, tol: float) -> bool:
+    return bool(finite and np.isfinite(after)
+                and after <= max(RECOVERY_FACTOR * clean, clean + tol))
+
+
+def inject(actions: np.ndarray, readings: np.ndarray, fault: str, start: int
+           ) -> tuple[np.ndarray, list[np.ndarray], slice]:
+    """The inputs with ``fault`` from update ``start`` on.
+
+    Args:
+        actions: (T, a) commanded motion per update. readings: (T, S) bool.
+
+    Returns:
+        actions (T, a) float, readings (T entries, float where NaN was injected, else bool)
+        and the fault's updates.
+    """
+    length = 2 * FAULT_STEPS if fault == "contradicting" else FAULT_STEPS
+    window = slice(start, min(start + length, len(actions)))
+    actions = np.array(actions, dtype=float)
+    out = [np.array(r, dtype=bool) for r in readings]
+    for t in range(window.start, window.stop):
+        if fault == "nan-action":
+            actions[t] = np.nan
+        elif fault == "nan-reading":
+            out[t] = np.full(len(out[t]), np.nan)
+        elif fault == "all-sensors-on":
+            out[t] = np.ones(len(out[t]), dtype=bool)
+        elif fault == "stuck-on":
+            out[t] = out[t].copy()
+            out[t][0] = True
+        elif fault == "stuck-off":
+            out[t] = np.zeros(len(out[t]), dtype=bool)
+        elif fault == "contradicting":
+            out[t] = np.full(len(out[t]), (t - window.start) % 2 == 0)
+        else:
+            raise ValueError(f"unknown fault {fault!r}; choose from {FILTER_FAULTS}")
+    return actions, out, window
+
+
+def _filter_run(filt, belief: ParticleBelief, actions, readings, error, rng):
+    """(T,) errors after each update and whether any update flagged a rejected input or
+    a degenerate or dual-sampled update."""
+    errors, flags = [], []
+    for t, (action, reading) in enumerate(zip(actions, readings, strict=True)):
+        belief, diag = filt.update(belief, action, reading, rng=rng)
+        finite = np.all(np.isfinite(belief.states)) and np.all(np.isfinite(belief.log_weights))
+        errors.append(error(belief, t) if finite else np.nan)
+        flags.append((diag.rejected, diag.degenerate or diag.dual_used))
+    return np.array(errors), flags
+
+
+def _outcome(estimator, fault, trial, clean, faulty, window, flags, tol) -> FaultOutcome:
+    quarter = slice(len(clean) - len(clean) // 4, len(clean))
+    finite = bool(np.all(np.isfinite(faulty)))
+    if fault in ("nan-action", "nan-reading"):
+        kind = fault.split("-")[1]
+        reported = all(flags[t][0] == kind.replace("reading", "observation")
+                       for t in range(window.start, window.stop))
+    elif fault == "all-sensors-on":
+        reported = all(flags[t][1] for t in range(window.start, window.stop))
+    else:
+        reported = None
+    after, clean_after = float(np.mean(faulty[quarter])), float(np.mean(clean[quarter]))
+    return FaultOutcome(estimator, fault, trial, finite, reported,
+                        float(np.mean(faulty[window])), after, clean_after,
+                        _recovered(finite, after, clean_after, tol))
+
+
+def hand_faults(trials: int, *, seed: int = 0, progress: bool = True) -> list[FaultOutcome]:
+    """Every fault of :data:`FILTER_FAULTS` in ``trials`` pushes (those with contact) of
+    the MPF study's default settings, for each hand-relative filter."""
+    settings = TrialSettings()
+    world = PlanarWorld.load(settings.object, settings.sensors)
+    outcomes, trial = [], 0
+    bar = tqdm(total=trials * len(HAND_FILTERS) * len(FILTER_FAULTS), desc="hand filters",
+               disable=not progress, leave=False)
+    done = 0
+    while done < trials:
+        truth = simulate_truth(settings, seed, trial)
+        touching = world.in_contact(truth.true_states)
+        if touching.any() and np.argmax(touching) + 2 * FAULT_STEPS + 2 < 0.75 * len(touching):
+            start = int(np.argmax(touching)) + 2
+            actions = np.repeat(truth.action[None], len(truth.true_states), axis=0)
+
+            def error(belief, t, truth=truth):
+                return belief.rmse(truth.true_states[t])[0]
+
+            for f, spec in enumerate(HAND_FILTERS):
+                runs = {}
+                for fault in (None, *FILTER_FAULTS):
+                    rng = np.random.default_rng([seed, trial, 1, f])
+                    filt = build_hand_filter(world, settings, spec, truth.mean, truth.std,
+                                             truth.action, seed, rng)
+                    belief = ParticleBelief.uniform(world.sample_gaussian(
+                        truth.mean, truth.std, settings.particles, rng=rng))
+                    if fault is None:
+                        runs[None] = _filter_run(filt, belief, actions,
+                                                 list(truth.observations), error, rng)[0]
+                        continue
+                    a, r, window = inject(actions, truth.observations, fault, start)
+                    errors, flags = _filter_run(filt, belief, a, r, error, rng)
+                    outcomes.append(_outcome(f"hand/{spec.label}", fault, trial, runs[None],
+                                             errors, window, flags, TOLERANCE["hand"]))
+                    bar.update()
+            done += 1
+        trial += 1
+    bar.close()
+    return outcomes
+
+
+def arm_faults(trials: int, *, seed: int = 0, progress: bool = True) -> list[FaultOutcome]:
+    """Every fault of :data:`FILTER_FAULTS` in ``trials`` experiments of the 3-DOF arm, for
+    the CPF and MPF-Ball of the configuration study (n = 250)."""
+    settings = ConfigestSettings(arms=("3dof",), trials=2)
+    world = arm_world("3dof", settings.process_noise_radius_rad)
+    outcomes = []
+    bar = tqdm(total=trials * len(ARM_FILTERS) * len(FILTER_FAULTS), desc="arm filters",
+               disable=not progress, leave=False)
+    for trial in range(trials):
+        trajectory = world.simulate(rng=np.random.default_rng((seed, 31, trial)))
+        readings = trajectory.contacts[1:]
+        start = int(np.argmax(world.true_contacts(trajectory.q_true[1:]).any(axis=1))) + 2
+
+        def error(belief, t, trajectory=trajectory):
+            return joint_rmse(world, belief, trajectory.q_true[t + 1])
+
+        for f, kind in enumerate(ARM_FILTERS):
+            runs = {}
+            for fault in (None, *FILTER_FAULTS):
+                rng = np.random.default_rng((seed, 31, trial, 1 + f))
+                filt, n, _ = build_filter(world, kind, settings)
+                belief = ParticleBelief.uniform(world.initial_belief_states(
+                    trajectory.encoders[0], n, rng=rng), world.angular)
+                if fault is None:
+                    runs[None] = _filter_run(filt, belief, trajectory.commanded,
+                                             list(readings), error, rng)[0]
+                    continue
+                a, r, window = inject(trajectory.commanded, readings, fault, start)
+                errors, flags = _filter_run(filt, belief, a, r, error, rng)
+                outcomes.append(_outcome(f"arm/{kind}", fault, trial, runs[None], errors,
+                                         window, flags, TOLERANCE["arm"]))
+                bar.update()
+    bar.close()
+    return outcomes
+
+
+def inject_smoother(steps: PushingSteps, fault: str, start: int) -> tuple[PushingSteps, slice]:
+    """``steps`` with ``fault`` for :data:`SMOOTHER_FAULT_S` from step ``start``."""
+    dt = float(np.median(np.diff(steps.t)))
+    window = slice(start, min(start + int(round(SMOOTHER_FAULT_S / dt)), len(steps)))
+    forces, vision = steps.forces.copy(), steps.vision.copy()
+    vision_ok, contact = steps.vision_ok.copy(), steps.contact.copy()
+    if fault == "nan-force":
+        forces[window] = np.nan
+    elif fault == "nan-camera":
+        vision[window] = np.nan
+    elif fault == "teleported-camera":
+        vision[window] += np.array([0.3, 0.3, 1.0])
+    elif fault == "dropped-frames":
+        vision_ok[window] = False
+    elif fault == "stuck-contact":  # the force sensors freeze on their last reading
+        contact[window] = True
+        forces[window] = forces[window.start - 1]
+    else:
+        raise ValueError(f"unknown fault {fault!r}; choose from {SMOOTHER_FAULTS}")
+    return replace(steps, forces=forces, vision=vision, vision_ok=vision_ok,
+                   contact=contact), window
+
+
+def smoother_faults(steps: PushingSteps, polygon: np.ndarray, *, progress: bool = True
+                    ) -> list[FaultOutcome]:
+    """Every fault of :data:`SMOOTHER_FAULTS` in one push (``steps``, with ground truth),
+    from the first step where a rod touches and the camera sees (the camera is occluded
+    for much of a push: a camera fault there would change nothing), for the smoother of
+    :func:`recommended_settings`."""
+    noise, _, _ = identify_from_runs([steps], polygon)
+
+    def run(s: PushingSteps) -> tuple[np.ndarray, int]:
+        smoother = VisuoTactileSmoother(polygon, noise, recommended_settings(),
+                                        rod_radius_m=s.rod_radius_m)
+        estimates = smoother.run(s)
+        return np.linalg.norm(estimates[:, :2] - s.truth[:, :2], axis=1), \
+            smoother.rejected_inputs
+
+    clean, _ = run(steps)
+    begun = np.isfinite(clean)
+    clean = clean[begun]
+    outcomes = []
+    start = int(np.argmax(steps.contact.any(axis=1) & steps.vision_ok))
+    for fault in tqdm(SMOOTHER_FAULTS, desc="smoother", disable=not progress, leave=False):
+        faulty_steps, window = inject_smoother(steps, fault, start)
+        errors, rejected = run(faulty_steps)
+        errors = errors[begun]
+        shift = int(np.argmax(begun))
+        window = slice(window.start - shift, window.stop - shift)
+        reported = rejected > 0 if fault.startswith("nan-") else None
+        # a NaN left in an estimate would make errors NaN: finite is checked on them
+        outcome = _outcome("smoother", fault, 0, clean, errors, window, [], TOLERANCE[
+            "smoother"])
+        outcomes.append(replace(outcome, reported=reported))
+    return outcomes
+
+
+def simulated_push(seed: int = 0) -> tuple[PushingSteps, np.ndarray]:
+    """A short simulated push of rect1 on plywood (the first three strokes of the
+    standard procedure) and the object's outline."""
+    from diagrams.pusher.simulation import simulate_push
+    from models.pusher.procedure import standard_procedure
+    from models.pusher.rig import PusherSliderRig
+
+    spec = ObjectSpec.load("rect1")
+    run = simulate_push(PusherSliderRig.load(), spec, standard_procedure()[:3], seed=seed,
+                        object_name="rect1")
+    return PushingSteps.from_log(run.log), spec.footprint()
+
+
+def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True) -> dict:
+    """Every estimator under every fault: ``faults_injected``, ``faults_recovered``,
+    ``faults_reported`` (of those the estimator can detect) and each outcome."""
+    steps, polygon = simulated_push(seed)
+    outcomes = (hand_faults(trials, seed=seed, progress=progress)
+                + arm_faults(trials, seed=seed, progress=progress)
+                + smoother_faults(steps, polygon, progress=progress))
+    detectable = [o for o in outcomes if o.reported is not None]
+    return {
+        "faults_injected": len(outcomes),
+        "faults_recovered": sum(o.recovered for o in outcomes),
+        "faults_non_finite": sum(not o.finite for o in outcomes),
+        "faults_detectable": len(detectable),
+        "faults_reported": sum(bool(o.reported) for o in detectable),
+        "fault_outcomes": [asdict(o) for o in outcomes],
+    }
