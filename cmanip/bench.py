@@ -8,6 +8,7 @@ from pathlib import Path
 
 from cmanip.options import subcommand, write_json
 from cmanip.pomdp import TRIAL_RULES
+from cmanip.robustness import ROBUSTNESS_PARTS
 
 
 def register(commands) -> None:
@@ -37,12 +38,27 @@ def register(commands) -> None:
     _json(ce)
     ce.set_defaults(handler=_configest)
 
-    robust = subcommand(kinds, "robustness", "bad input, counted: every kind of file a user "
-                                             "can pass, mutated; each must end in a clear "
-                                             "error naming the file")
+    robust = subcommand(kinds, "robustness", "robustness, measured: malformed files of every "
+                                             "kind, faults injected into every estimator, "
+                                             "planner budgets under load, memory over long "
+                                             "runs")
+    robust.add_argument("--parts", nargs="+", choices=ROBUSTNESS_PARTS,
+                        default=list(ROBUSTNESS_PARTS), help="what to measure")
     robust.add_argument("--limit-per-kind", type=int, default=None,
-                        help="try at most this many mutants per file kind (default: all, "
-                             "about 15,500 files in 2 minutes)")
+                        help="malformed: try at most this many mutants per file kind "
+                             "(default: all, about 15,500 files in 2 minutes)")
+    robust.add_argument("--fault-trials", type=int, default=3,
+                        help="faults: experiments per estimator family")
+    robust.add_argument("--decisions", type=int, default=200,
+                        help="budgets: decisions per planner and load; memory: closed-loop "
+                             "decisions are five times this")
+    robust.add_argument("--budget-s", type=float, default=0.1,
+                        help="budgets: wall-clock budget per decision (s)")
+    robust.add_argument("--smoother-updates", type=int, default=10_000,
+                        help="memory: smoother updates")
+    robust.add_argument("--cache-dir", type=Path, default=Path("out/cache"),
+                        help="budgets: where Lat-DESPOT's lattice IK table is kept")
+    robust.add_argument("--seed", type=int, default=0, help="seeds every part")
     robust.add_argument("--no-progress", action="store_true", help="no progress bar")
     _json(robust)
     robust.set_defaults(handler=_robustness)
@@ -110,19 +126,19 @@ def _configest(args: argparse.Namespace) -> int:
 
 
 def _robustness(args: argparse.Namespace) -> int:
-    from cmanip.malformed import measure
+    from cmanip.robustness import measure_robustness
 
-    if args.limit_per_kind is not None and args.limit_per_kind < 1:
-        raise ValueError(f"--limit-per-kind must be >= 1, got {args.limit_per_kind}")
-    report = measure(limit_per_kind=args.limit_per_kind, progress=not args.no_progress)
-    print(f"malformed inputs: {report['malformed_tried']} tried, "
-          f"{report['malformed_clear_error']} clear errors naming the file, "
-          f"{report['malformed_accepted']} loaded (a legal variation or a silent default; "
-          f"listed under accepted_cases), {report['malformed_other']} other (listed under "
-          f"other_cases)")
-    for kind, entry in report["kinds"].items():
-        print(f"  {kind:32s} {entry['tried']:5d} tried, {entry['clear_error']:5d} clear, "
-              f"{entry['accepted']:4d} loaded, {entry['other']:3d} other")
+    for name in ("limit_per_kind", "fault_trials", "decisions", "smoother_updates"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            raise ValueError(f"--{name.replace('_', '-')} must be >= 1, got {value}")
+    if not args.budget_s > 0:
+        raise ValueError(f"--budget-s must be > 0, got {args.budget_s}")
+    report = measure_robustness(
+        args.parts, limit_per_kind=args.limit_per_kind, fault_trials=args.fault_trials,
+        decisions=args.decisions, budget_s=args.budget_s,
+        smoother_updates=args.smoother_updates, cache_dir=args.cache_dir, seed=args.seed,
+        progress=not args.no_progress)
     write_json(report, args.json)
     return 0
 

@@ -2,10 +2,13 @@
 
 Every estimator of the project is run twice on the same simulated experiment with the same
 random numbers: once clean, once with one fault injected into its inputs for a stretch of
-steps. A fault is *recovered* when the faulty run never produced a non-finite estimate and
-its error over the last quarter of the run is at most ``max(1.5 x clean, clean + tol)``:
-the estimator came back to where the clean run is, give or take what a different draw of
-the same filter gives.
+steps. The particle filters run so both as they are and behind
+:class:`~estimation.particles.recovery.PriorFallback` (falling back on the prior
+predictive after three surprising readings in a row), each against its own clean run. A
+fault is *recovered* when the faulty run never produced a non-finite estimate and its
+error over the last quarter of the run is at most ``max(1.5 x clean, clean + tol)``: the
+estimator came back to where the clean run is, give or take what a different draw of the
+same filter gives.
 
 Estimators and faults:
 
@@ -15,9 +18,9 @@ Estimators and faults:
   ``nan-action`` (the hand's or the arm's commanded motion arrives as NaN: the filter skips
   the update and reports it), ``nan-reading`` (the contact reading arrives as NaN: the
   filter propagates without weighting and reports it), ``all-sensors-on`` (every sensor
-  lit at once: a reading no particle explains; the CPF keeps its prediction and reports a
-  degenerate update, the MPF draws from the manifold), ``stuck-on`` (one sensor reads
-  contact whatever happens), ``stuck-off`` (every sensor reads free during contact) and
+  lit at once: a reading the prediction does not explain, reported when its evidence
+  p(o | b+) is below :data:`SURPRISE` at some step of the fault), ``stuck-on`` (one
+  sensor reads contact whatever happens), ``stuck-off`` (every sensor reads free during contact) and
   ``contradicting`` (all on, all off, alternating, for twice as long). The faults start
   two steps after the first true contact; tol is 1 cm (hand) and 0.1 rad (arm).
 - the visuo-tactile smoother (seed 003) on a simulated push of rect1, with ``nan-force``,
@@ -37,6 +40,7 @@ from tqdm import tqdm
 
 from estimation.configuration.belief import joint_rmse
 from estimation.particles.belief import ParticleBelief
+from estimation.particles.recovery import SURPRISE, PriorFallback
 from estimation.pushing.inputs import PushingSteps
 from estimation.pushing.noise import identify_from_runs
 from estimation.pushing.smoother import VisuoTactileSmoother, recommended_settings
@@ -55,6 +59,8 @@ FAULT_STEPS = 10
 SMOOTHER_FAULT_S = 1.0
 """Length of a smoother fault (s)."""
 RECOVERY_FACTOR = 1.5
+REJECTED = {"nan-action": "action", "nan-reading": "observation"}
+"""The input a filter must report rejecting under each NaN fault."""
 HAND_FILTERS = (FilterSpec("cpf", "cpf"), FilterSpec("mpf-am", "am"),
                 FilterSpec("mpf-rs", "rs"), FilterSpec("mpf-tr", "tr"))
 ARM_FILTERS = ("cpf", "mpf-ball")
@@ -69,6 +75,7 @@ class FaultOutcome:
     Attributes:
         estimator: e.g. ``hand/mpf-am``, ``arm/cpf``, ``smoother``.
         fault: its name; trial: the experiment it was injected into.
+        fallback: the filter ran behind :class:`PriorFallback`.
         finite: every estimate of the faulty run was finite.
         reported: the estimator flagged it (None where a fault is not detectable as such:
             a stuck sensor reads like a real one).
@@ -80,6 +87,7 @@ class FaultOutcome:
     estimator: str
     fault: str
     trial: int
+    fallback: bool
     finite: bool
     reported: bool | None
     error_during: float
@@ -128,70 +136,90 @@ def inject(actions: np.ndarray, readings: np.ndarray, fault: str, start: int
 
 
 def _filter_run(filt, belief: ParticleBelief, actions, readings, error, rng):
-    """(T,) errors after each update and whether any update flagged a rejected input or
-    a degenerate or dual-sampled update."""
+    """(T,) errors after each update, and per update the input it rejected and whether
+    its reading was a surprise (evidence below :data:`SURPRISE`)."""
     errors, flags = [], []
     for t, (action, reading) in enumerate(zip(actions, readings, strict=True)):
         belief, diag = filt.update(belief, action, reading, rng=rng)
         finite = np.all(np.isfinite(belief.states)) and np.all(np.isfinite(belief.log_weights))
         errors.append(error(belief, t) if finite else np.nan)
-        flags.append((diag.rejected, diag.degenerate or diag.dual_used))
+        flags.append((diag.rejected, diag.log_evidence < np.log(SURPRISE)))
     return np.array(errors), flags
 
 
-def _outcome(estimator, fault, trial, clean, faulty, window, flags, tol) -> FaultOutcome:
+def _outcome(estimator, fault, trial, clean, faulty, window, flags, tol,
+             fallback: bool = False) -> FaultOutcome:
     quarter = slice(len(clean) - len(clean) // 4, len(clean))
     finite = bool(np.all(np.isfinite(faulty)))
-    if fault in ("nan-action", "nan-reading"):
-        kind = fault.split("-")[1]
-        reported = all(flags[t][0] == kind.replace("reading", "observation")
-                       for t in range(window.start, window.stop))
+    steps = range(window.start, window.stop)
+    if fault in REJECTED:
+        reported = all(flags[t][0] == REJECTED[fault] for t in steps)
     elif fault == "all-sensors-on":
-        reported = all(flags[t][1] for t in range(window.start, window.stop))
+        reported = any(flags[t][1] for t in steps)
     else:
         reported = None
     after, clean_after = float(np.mean(faulty[quarter])), float(np.mean(clean[quarter]))
-    return FaultOutcome(estimator, fault, trial, finite, reported,
+    return FaultOutcome(estimator, fault, trial, fallback, finite, reported,
                         float(np.mean(faulty[window])), after, clean_after,
                         _recovered(finite, after, clean_after, tol))
 
 
+def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray,
+                     start: int, error, trial: int, tol: float) -> list[FaultOutcome]:
+    """Every fault of :data:`FILTER_FAULTS` from update ``start``, for the filter ``make``
+    builds, plain and behind :class:`PriorFallback`, each against its own clean run.
+
+    Args:
+        make: ``(fallback: bool) -> (filter, belief, rng)``, the same seed every call.
+        actions: (T, a). readings: (T, S) bool. error: ``(belief, t) -> float``.
+    """
+    outcomes = []
+    for fallback in (False, True):
+        filt, belief, rng = make(fallback)
+        clean, _ = _filter_run(filt, belief, actions, list(readings), error, rng)
+        for fault in FILTER_FAULTS:
+            filt, belief, rng = make(fallback)
+            a, r, window = inject(actions, readings, fault, start)
+            errors, flags = _filter_run(filt, belief, a, r, error, rng)
+            outcomes.append(_outcome(label, fault, trial, clean, errors, window, flags, tol,
+                                     fallback))
+    return outcomes
+
+
 def hand_faults(trials: int, *, seed: int = 0, progress: bool = True) -> list[FaultOutcome]:
-    """Every fault of :data:`FILTER_FAULTS` in ``trials`` pushes (those with contact) of
+    """Every fault of :data:`FILTER_FAULTS` in the first ``trials`` pushes with contact of
     the MPF study's default settings, for each hand-relative filter."""
     settings = TrialSettings()
     world = PlanarWorld.load(settings.object, settings.sensors)
-    outcomes, trial = [], 0
-    bar = tqdm(total=trials * len(HAND_FILTERS) * len(FILTER_FAULTS), desc="hand filters",
-               disable=not progress, leave=False)
-    done = 0
+    outcomes, trial, done = [], 0, 0
+    bar = tqdm(total=trials * len(HAND_FILTERS), desc="hand filters", disable=not progress,
+               leave=False)
     while done < trials:
         truth = simulate_truth(settings, seed, trial)
         touching = world.in_contact(truth.true_states)
-        if touching.any() and np.argmax(touching) + 2 * FAULT_STEPS + 2 < 0.75 * len(touching):
-            start = int(np.argmax(touching)) + 2
+        first = int(np.argmax(touching))
+        if touching.any() and first + 2 * FAULT_STEPS + 2 < 0.75 * len(touching):
             actions = np.repeat(truth.action[None], len(truth.true_states), axis=0)
 
             def error(belief, t, truth=truth):
                 return belief.rmse(truth.true_states[t])[0]
 
             for f, spec in enumerate(HAND_FILTERS):
-                runs = {}
-                for fault in (None, *FILTER_FAULTS):
+                def make(fallback, f=f, spec=spec, truth=truth, trial=trial):
                     rng = np.random.default_rng([seed, trial, 1, f])
                     filt = build_hand_filter(world, settings, spec, truth.mean, truth.std,
                                              truth.action, seed, rng)
                     belief = ParticleBelief.uniform(world.sample_gaussian(
                         truth.mean, truth.std, settings.particles, rng=rng))
-                    if fault is None:
-                        runs[None] = _filter_run(filt, belief, actions,
-                                                 list(truth.observations), error, rng)[0]
-                        continue
-                    a, r, window = inject(actions, truth.observations, fault, start)
-                    errors, flags = _filter_run(filt, belief, a, r, error, rng)
-                    outcomes.append(_outcome(f"hand/{spec.label}", fault, trial, runs[None],
-                                             errors, window, flags, TOLERANCE["hand"]))
-                    bar.update()
+                    if fallback:
+                        filt = PriorFallback(filt, world, world.sample_gaussian(
+                            truth.mean, truth.std, settings.particles, rng=rng))
+                    return filt, belief, rng
+
+                outcomes += _filter_outcomes(f"hand/{spec.label}", make, actions,
+                                             truth.observations, first + 2, error, trial,
+                                             TOLERANCE["hand"])
+                bar.update()
             done += 1
         trial += 1
     bar.close()
@@ -204,32 +232,30 @@ def arm_faults(trials: int, *, seed: int = 0, progress: bool = True) -> list[Fau
     settings = ConfigestSettings(arms=("3dof",), trials=2)
     world = arm_world("3dof", settings.process_noise_radius_rad)
     outcomes = []
-    bar = tqdm(total=trials * len(ARM_FILTERS) * len(FILTER_FAULTS), desc="arm filters",
-               disable=not progress, leave=False)
+    bar = tqdm(total=trials * len(ARM_FILTERS), desc="arm filters", disable=not progress,
+               leave=False)
     for trial in range(trials):
         trajectory = world.simulate(rng=np.random.default_rng((seed, 31, trial)))
-        readings = trajectory.contacts[1:]
         start = int(np.argmax(world.true_contacts(trajectory.q_true[1:]).any(axis=1))) + 2
 
         def error(belief, t, trajectory=trajectory):
             return joint_rmse(world, belief, trajectory.q_true[t + 1])
 
         for f, kind in enumerate(ARM_FILTERS):
-            runs = {}
-            for fault in (None, *FILTER_FAULTS):
+            def make(fallback, f=f, kind=kind, trajectory=trajectory, trial=trial):
                 rng = np.random.default_rng((seed, 31, trial, 1 + f))
                 filt, n, _ = build_filter(world, kind, settings)
                 belief = ParticleBelief.uniform(world.initial_belief_states(
                     trajectory.encoders[0], n, rng=rng), world.angular)
-                if fault is None:
-                    runs[None] = _filter_run(filt, belief, trajectory.commanded,
-                                             list(readings), error, rng)[0]
-                    continue
-                a, r, window = inject(trajectory.commanded, readings, fault, start)
-                errors, flags = _filter_run(filt, belief, a, r, error, rng)
-                outcomes.append(_outcome(f"arm/{kind}", fault, trial, runs[None], errors,
-                                         window, flags, TOLERANCE["arm"]))
-                bar.update()
+                if fallback:
+                    filt = PriorFallback(filt, world, world.initial_belief_states(
+                        trajectory.encoders[0], n, rng=rng))
+                return filt, belief, rng
+
+            outcomes += _filter_outcomes(f"arm/{kind}", make, trajectory.commanded,
+                                         trajectory.contacts[1:], start, error, trial,
+                                         TOLERANCE["arm"])
+            bar.update()
     bar.close()
     return outcomes
 
@@ -305,16 +331,23 @@ def simulated_push(seed: int = 0) -> tuple[PushingSteps, np.ndarray]:
 
 
 def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True) -> dict:
-    """Every estimator under every fault: ``faults_injected``, ``faults_recovered``,
-    ``faults_reported`` (of those the estimator can detect) and each outcome."""
+    """Every estimator under every fault: ``faults_injected`` (each fault once),
+    ``faults_recovered`` (the filters behind the prior fallback, the smoother as it is),
+    ``faults_recovered_without_fallback`` (the filters as they are), ``faults_non_finite``
+    (runs with a NaN or infinite estimate, either way), ``faults_reported`` of
+    ``faults_detectable`` and each outcome."""
     steps, polygon = simulated_push(seed)
     outcomes = (hand_faults(trials, seed=seed, progress=progress)
                 + arm_faults(trials, seed=seed, progress=progress)
                 + smoother_faults(steps, polygon, progress=progress))
-    detectable = [o for o in outcomes if o.reported is not None]
+    # each fault once: the smoother's outcome and the filters' behind the fallback
+    counted = [o for o in outcomes if o.fallback or o.estimator == "smoother"]
+    plain = [o for o in outcomes if not o.fallback]
+    detectable = [o for o in counted if o.reported is not None]
     return {
-        "faults_injected": len(outcomes),
-        "faults_recovered": sum(o.recovered for o in outcomes),
+        "faults_injected": len(counted),
+        "faults_recovered": sum(o.recovered for o in counted),
+        "faults_recovered_without_fallback": sum(o.recovered for o in plain),
         "faults_non_finite": sum(not o.finite for o in outcomes),
         "faults_detectable": len(detectable),
         "faults_reported": sum(bool(o.reported) for o in detectable),

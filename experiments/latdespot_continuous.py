@@ -52,7 +52,7 @@ class ContinuousEpisode:
     degenerate_updates: int
 
 
-class _Episodes:
+class EpisodeRunner:
     """What one process needs to run episodes, built once from the settings with
     ``build(settings) -> (HandPOMDP, GaussianBelief, ...)``."""
 
@@ -68,7 +68,9 @@ class _Episodes:
         world = model.world
         self.filter = make_filter("mpf", world, AnalyticManifold(world))
 
-    def run(self, episode: int) -> ContinuousEpisode:
+    def run(self, episode: int, *, on_decision=None) -> ContinuousEpisode:
+        """Episode ``episode``; ``on_decision()`` is called after each decision's update
+        (the memory bench samples there)."""
         s, model, world = self.settings, self.model, self.model.world
         rng = np.random.default_rng([s.seed, EPISODE_STREAM, episode])
         state = self.belief.sample(world, 1, rng=rng)
@@ -89,15 +91,17 @@ class _Episodes:
             belief, diagnostics = self.filter.update(belief, action, reading, rng=rng)
             degenerate += diagnostics.degenerate
             in_goal[t + 1] = model.in_goal(state)[0]
+            if on_decision is not None:
+                on_decision()
         return ContinuousEpisode(in_goal, total, planning_ms, trials, crossings, degenerate)
 
 
-_WORKER: _Episodes | None = None
+_WORKER: EpisodeRunner | None = None
 
 
 def _start_worker(settings, build) -> None:
     global _WORKER
-    _WORKER = _Episodes(settings, build)
+    _WORKER = EpisodeRunner(settings, build)
 
 
 def _run_episode(episode: int) -> ContinuousEpisode:
@@ -113,7 +117,7 @@ def run_continuous_episodes(settings, build, *, workers: int = 1
     bar = tqdm(total=settings.trials, desc="rel rel-despot-continuous", unit="episode")
     episodes = []
     if workers <= 1:
-        runner = _Episodes(settings, build)
+        runner = EpisodeRunner(settings, build)
         for j in range(settings.trials):
             episodes.append(runner.run(j))
             bar.update()

@@ -53,6 +53,12 @@ class UpdateDiagnostics:
         sampling_failed: every dual sample had p(o | s) < 0.1 (sec. 4.3.5).
         degenerate: no predicted particle could explain the observation (all likelihoods
             zero); the predicted particles kept their prior weights.
+        log_evidence: log p(o | b+) = log sum_i w_i p(o | s_i) over the predicted
+            particles, the reading's marginal likelihood under the prediction (0 when no
+            reading was weighed); a reading far less likely than usual is a surprise a
+            caller can flag (-inf: degenerate).
+        reinvigorated: particles replaced by draws from the prior predictive
+            (:class:`estimation.particles.recovery.PriorFallback`).
         rejected: ``""``, or the input that was not finite and was not used:
             ``"action"`` (the update was skipped, the belief kept as it was) or
             ``"observation"`` (the belief was propagated and not weighted).
@@ -62,6 +68,8 @@ class UpdateDiagnostics:
     dual_used: bool = False
     sampling_failed: bool = False
     degenerate: bool = False
+    log_evidence: float = 0.0
+    reinvigorated: int = 0
     rejected: str = ""
 
 
@@ -86,6 +94,12 @@ def _unweighted(belief: ParticleBelief, predicted: np.ndarray, rejected: str
         return belief, UpdateDiagnostics(False, rejected=rejected)
     return (ParticleBelief(predicted, np.array(belief.log_weights), belief.angular),
             UpdateDiagnostics(False, rejected=rejected))
+
+
+def _log_evidence(belief: ParticleBelief, log_w: np.ndarray) -> float:
+    """log sum_i w_i p(o | s_i) from the weighted log-likelihoods ``log_w`` (the belief's
+    log-weights plus each particle's log-likelihood)."""
+    return float(log_sum_exp(log_w) - log_sum_exp(np.asarray(belief.log_weights)))
 
 
 def _normalised(log_w: np.ndarray) -> np.ndarray | None:
@@ -115,13 +129,15 @@ class ConventionalParticleFilter:
         if rejected:
             return _unweighted(belief, predicted, rejected)
         log_w = belief.log_weights + self.world.log_likelihood(observation, predicted, action)
+        evidence = _log_evidence(belief, log_w)
         degenerate = _normalised(log_w) is None
         if degenerate:
             log_w = np.array(belief.log_weights)
         posterior = ParticleBelief(predicted, log_w, belief.angular)
         n = self.resample_size or len(belief)
         return (posterior.resample(n, rng=rng),
-                UpdateDiagnostics(bool(np.any(observation)), degenerate=degenerate))
+                UpdateDiagnostics(bool(np.any(observation)), degenerate=degenerate,
+                                  log_evidence=evidence))
 
 
 class ManifoldParticleFilter:
@@ -219,7 +235,8 @@ class ManifoldParticleFilter:
             parts_states, parts_log_w = [predicted], [np.log(prior_w)]
         posterior = ParticleBelief(np.concatenate(parts_states), np.concatenate(parts_log_w),
                                    belief.angular)
-        diagnostics = UpdateDiagnostics(contact, dual_used, failed, degenerate)
+        diagnostics = UpdateDiagnostics(contact, dual_used, failed, degenerate,
+                                        _log_evidence(belief, belief.log_weights + cpf_ll))
         return posterior.resample(len(belief), rng=rng), diagnostics
 
 

@@ -8,7 +8,8 @@ from cmanip.malformed import FileKind, classify, table_mutations, yaml_mutations
 
 def test_every_kind_of_mutated_file_ends_in_a_clear_error_or_loads(tmp_path):
     report = tmp_path / "robust.json"
-    assert main(["bench", "robustness", "--limit-per-kind", "40", "--no-progress",
+    assert main(["bench", "robustness", "--parts", "malformed", "--limit-per-kind", "40",
+                 "--no-progress",
                  "--json", str(report)]) == 0
     result = json.loads(report.read_text())
     assert result["malformed_tried"] >= 500

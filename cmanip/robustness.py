@@ -1,0 +1,102 @@
+"""``cmanip bench robustness``: the parts measured and the report's summary keys.
+
+Parts: ``malformed`` (:mod:`cmanip.malformed`), ``faults``
+(:mod:`experiments.fault_bench`), ``budgets`` and ``memory``
+(:mod:`experiments.load_bench`). The report holds each part's details and, at its top,
+``malformed_tried``, ``malformed_clear_error``, ``faults_injected``, ``faults_recovered``
+(with the prior fallback, and ``faults_recovered_without_fallback``),
+``budget_overrun_ms_p99`` (the worse planner's p99 overrun under load) and
+``memory_growth_mb_per_1000_steps`` (the worse of the two long runs).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+ROBUSTNESS_PARTS = ("malformed", "faults", "budgets", "memory")
+
+
+def measure_robustness(parts, *, limit_per_kind: int | None = None, fault_trials: int = 3,
+                       decisions: int = 200, budget_s: float = 0.1,
+                       smoother_updates: int = 10_000, cache_dir: Path | None = None,
+                       seed: int = 0, progress: bool = True) -> dict:
+    """Measure ``parts`` and print a summary of each; the report (module docstring)."""
+    report: dict = {}
+    if "malformed" in parts:
+        from cmanip.malformed import measure
+
+        malformed = measure(limit_per_kind=limit_per_kind, progress=progress)
+        report.update(malformed)
+        print(f"malformed inputs: {malformed['malformed_tried']} tried, "
+              f"{malformed['malformed_clear_error']} clear errors naming the file, "
+              f"{malformed['malformed_accepted']} loaded (a legal variation or a silent "
+              f"default; listed under accepted_cases), {malformed['malformed_other']} other "
+              f"(listed under other_cases)")
+        for kind, entry in malformed["kinds"].items():
+            print(f"  {kind:32s} {entry['tried']:5d} tried, {entry['clear_error']:5d} clear, "
+                  f"{entry['accepted']:4d} loaded, {entry['other']:3d} other")
+    if "faults" in parts:
+        report.update(_faults(fault_trials, seed, progress))
+    if "budgets" in parts:
+        report.update(_budgets(decisions, budget_s, cache_dir, seed, progress))
+    if "memory" in parts:
+        report.update(_memory(5 * decisions, smoother_updates, seed, progress))
+    return report
+
+
+def _faults(trials: int, seed: int, progress: bool) -> dict:
+    from experiments.fault_bench import measure_faults
+
+    faults = measure_faults(trials=trials, seed=seed, progress=progress)
+    outcomes = faults["fault_outcomes"]
+    print(f"faults: {faults['faults_injected']} injected, {faults['faults_recovered']} "
+          f"recovered with the prior fallback ({faults['faults_recovered_without_fallback']} "
+          f"without), {faults['faults_non_finite']} with a non-finite estimate; "
+          f"{faults['faults_reported']} of {faults['faults_detectable']} detectable ones "
+          f"reported")
+    by = {}
+    for o in outcomes:
+        key = (o["estimator"], o["fallback"])
+        done, total = by.get(key, (0, 0))
+        by[key] = (done + o["recovered"], total + 1)
+    for (estimator, fallback), (done, total) in by.items():
+        print(f"  {estimator:16s} {'with' if fallback else 'without':7s} fallback: "
+              f"{done}/{total} recovered")
+    return faults
+
+
+def _budgets(decisions: int, budget_s: float, cache_dir, seed: int, progress: bool) -> dict:
+    from experiments.load_bench import despot_budget, lat_despot_budget
+
+    budgets = {"despot_tag": despot_budget(decisions, budget_s, seed=seed, progress=progress),
+               "lat_despot_cul_de_sac": lat_despot_budget(decisions, budget_s, seed=seed,
+                                                          cache_dir=cache_dir,
+                                                          progress=progress)}
+    for name, entry in budgets.items():
+        for load in ("idle", "loaded"):
+            e = entry[load]
+            print(f"budget {name} {load}: overrun p50 {e['overrun_ms_p50']:.1f} ms, p99 "
+                  f"{e['overrun_ms_p99']:.1f} ms, max {e['overrun_ms_max']:.1f} ms at "
+                  f"{entry['budget_ms']:.0f} ms (allowed p99 {e['allowed_p99_ms']:.1f} ms: "
+                  f"{'within' if e['within_budget'] else 'OVER'})")
+    return {"budgets": budgets,
+            "budget_overrun_ms_p99": max(e["loaded"]["overrun_ms_p99"]
+                                         for e in budgets.values()),
+            "budget_overrun_ms_max": max(e["loaded"]["overrun_ms_max"]
+                                         for e in budgets.values()),
+            "budgets_within": all(e[load]["within_budget"] for e in budgets.values()
+                                  for load in ("idle", "loaded"))}
+
+
+def _memory(decisions: int, updates: int, seed: int, progress: bool) -> dict:
+    from experiments.load_bench import closed_loop_memory, smoother_memory
+
+    memory = {"closed_loop": closed_loop_memory(decisions, seed=seed, progress=progress),
+              "smoother": smoother_memory(updates, seed=seed, progress=progress)}
+    for name, entry in memory.items():
+        print(f"memory {name}: {entry['rss_mb_start']:.0f} -> {entry['rss_mb_end']:.0f} MB, "
+              f"growth {entry['growth_mb_per_1000']:+.2f} MB per 1000 steps; open files "
+              f"{entry['open_files_before']} -> {entry['open_files_after']}")
+    return {"memory": memory,
+            "memory_growth_mb_per_1000_steps": max(e["growth_mb_per_1000"]
+                                                   for e in memory.values())}
