@@ -52,8 +52,8 @@ def _faults(trials: int, seed: int, progress: bool) -> dict:
     print(f"faults: {faults['faults_injected']} injected, {faults['faults_recovered']} "
           f"recovered with the prior fallback ({faults['faults_recovered_without_fallback']} "
           f"without), {faults['faults_non_finite']} with a non-finite estimate; "
-          f"{faults['faults_reported']} of {faults['faults_detectable']} detectable ones "
-          f"reported")
+          f"{faults['faults_reported']} of {faults['faults_non_finite_input']} non-finite "
+          f"inputs reported")
     by = {}
     for o in outcomes:
         key = (o["estimator"], o["fallback"])

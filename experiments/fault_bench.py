@@ -18,8 +18,9 @@ Estimators and faults:
   ``nan-action`` (the hand's or the arm's commanded motion arrives as NaN: the filter skips
   the update and reports it), ``nan-reading`` (the contact reading arrives as NaN: the
   filter propagates without weighting and reports it), ``all-sensors-on`` (every sensor
-  lit at once: a reading the prediction does not explain, reported when its evidence
-  p(o | b+) is below :data:`SURPRISE` at some step of the fault), ``stuck-on`` (one
+  lit at once: with the arm's discriminative sensors a reading no state explains, whose
+  evidence p(o | b+) falls below :data:`SURPRISE`; with the planar world's 10 % flips a
+  plausible one), ``stuck-on`` (one
   sensor reads contact whatever happens), ``stuck-off`` (every sensor reads free during contact) and
   ``contradicting`` (all on, all off, alternating, for twice as long). The faults start
   two steps after the first true contact; tol is 1 cm (hand) and 0.1 rad (arm).
@@ -77,8 +78,11 @@ class FaultOutcome:
         fault: its name; trial: the experiment it was injected into.
         fallback: the filter ran behind :class:`PriorFallback`.
         finite: every estimate of the faulty run was finite.
-        reported: the estimator flagged it (None where a fault is not detectable as such:
-            a stuck sensor reads like a real one).
+        reported: the estimator reported rejecting the input at every step of the fault
+            (None for faults without a non-finite input to reject).
+        surprised: some reading of the fault had evidence below :data:`SURPRISE` (None for
+            the smoother): a reading the belief did not expect, which a caller can flag;
+            a stuck sensor or a burst of plausible readings need not be one.
         error_during, error_after, clean_after: mean error during the fault and over the
             last quarter of the run, faulty and clean (m or rad).
         recovered: finite and error_after within the recovery rule.
@@ -90,6 +94,7 @@ class FaultOutcome:
     fallback: bool
     finite: bool
     reported: bool | None
+    surprised: bool | None
     error_during: float
     error_after: float
     clean_after: float
@@ -152,14 +157,11 @@ def _outcome(estimator, fault, trial, clean, faulty, window, flags, tol,
     quarter = slice(len(clean) - len(clean) // 4, len(clean))
     finite = bool(np.all(np.isfinite(faulty)))
     steps = range(window.start, window.stop)
-    if fault in REJECTED:
-        reported = all(flags[t][0] == REJECTED[fault] for t in steps)
-    elif fault == "all-sensors-on":
-        reported = any(flags[t][1] for t in steps)
-    else:
-        reported = None
+    reported = all(flags[t][0] == REJECTED[fault] for t in steps) if fault in REJECTED \
+        else None
+    surprised = any(flags[t][1] for t in steps) if flags else None
     after, clean_after = float(np.mean(faulty[quarter])), float(np.mean(clean[quarter]))
-    return FaultOutcome(estimator, fault, trial, fallback, finite, reported,
+    return FaultOutcome(estimator, fault, trial, fallback, finite, reported, surprised,
                         float(np.mean(faulty[window])), after, clean_after,
                         _recovered(finite, after, clean_after, tol))
 
@@ -186,13 +188,14 @@ def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray
     return outcomes
 
 
-def hand_faults(trials: int, *, seed: int = 0, progress: bool = True) -> list[FaultOutcome]:
+def hand_faults(trials: int, *, seed: int = 0, filters: tuple[FilterSpec, ...] = HAND_FILTERS,
+                progress: bool = True) -> list[FaultOutcome]:
     """Every fault of :data:`FILTER_FAULTS` in the first ``trials`` pushes with contact of
-    the MPF study's default settings, for each hand-relative filter."""
+    the MPF study's default settings, for each of ``filters``."""
     settings = TrialSettings()
     world = PlanarWorld.load(settings.object, settings.sensors)
     outcomes, trial, done = [], 0, 0
-    bar = tqdm(total=trials * len(HAND_FILTERS), desc="hand filters", disable=not progress,
+    bar = tqdm(total=trials * len(filters), desc="hand filters", disable=not progress,
                leave=False)
     while done < trials:
         truth = simulate_truth(settings, seed, trial)
@@ -204,7 +207,7 @@ def hand_faults(trials: int, *, seed: int = 0, progress: bool = True) -> list[Fa
             def error(belief, t, truth=truth):
                 return belief.rmse(truth.true_states[t])[0]
 
-            for f, spec in enumerate(HAND_FILTERS):
+            for f, spec in enumerate(filters):
                 def make(fallback, f=f, spec=spec, truth=truth, trial=trial):
                     rng = np.random.default_rng([seed, trial, 1, f])
                     filt = build_hand_filter(world, settings, spec, truth.mean, truth.std,
@@ -335,7 +338,8 @@ def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True) -> 
     ``faults_recovered`` (the filters behind the prior fallback, the smoother as it is),
     ``faults_recovered_without_fallback`` (the filters as they are), ``faults_non_finite``
     (runs with a NaN or infinite estimate, either way), ``faults_reported`` of
-    ``faults_detectable`` and each outcome."""
+    ``faults_non_finite_input`` (the faults feeding NaN or infinite inputs, which the
+    estimator must report rejecting) and each outcome."""
     steps, polygon = simulated_push(seed)
     outcomes = (hand_faults(trials, seed=seed, progress=progress)
                 + arm_faults(trials, seed=seed, progress=progress)
@@ -349,7 +353,7 @@ def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True) -> 
         "faults_recovered": sum(o.recovered for o in counted),
         "faults_recovered_without_fallback": sum(o.recovered for o in plain),
         "faults_non_finite": sum(not o.finite for o in outcomes),
-        "faults_detectable": len(detectable),
+        "faults_non_finite_input": len(detectable),
         "faults_reported": sum(bool(o.reported) for o in detectable),
         "fault_outcomes": [asdict(o) for o in outcomes],
     }

@@ -1,0 +1,79 @@
+"""The fault bench and the load bench on small settings: faults are injected where they
+say, a CPF under every fault stays finite and reports what it can, and the budget and
+memory statistics are what they claim."""
+
+import time
+
+import numpy as np
+import pytest
+
+from experiments.fault_bench import (
+    FILTER_FAULTS,
+    FaultOutcome,
+    hand_faults,
+    inject,
+    inject_smoother,
+)
+from experiments.load_bench import BusyCore, _budget_report, growth_mb_per_1000
+from experiments.mpf_study import FilterSpec
+
+
+def test_inject_puts_each_fault_in_its_window():
+    actions = np.ones((30, 3))
+    readings = np.zeros((30, 4), dtype=bool)
+    a, r, window = inject(actions, readings, "nan-action", 5)
+    assert window == slice(5, 15) and np.isnan(a[5:15]).all() and np.isfinite(a[15:]).all()
+    _, r, _ = inject(actions, readings, "nan-reading", 5)
+    assert np.isnan(r[5]).all() and r[15].dtype == bool
+    _, r, window = inject(actions, readings, "contradicting", 5)
+    assert window == slice(5, 25) and r[5].all() and not r[6].any()
+    _, r, _ = inject(actions, readings, "stuck-on", 5)
+    assert r[7][0] and not r[7][1:].any() and not r[4].any()
+    with pytest.raises(ValueError, match="unknown fault"):
+        inject(actions, readings, "gremlins", 5)
+
+
+def test_inject_smoother_freezes_and_drops(synthetic_push_log):
+    from estimation.pushing.inputs import PushingSteps
+
+    steps = PushingSteps.from_log(synthetic_push_log)
+    dropped, window = inject_smoother(steps, "dropped-frames", 100)
+    assert window.stop - window.start == 100  # 1 s at 100 Hz
+    assert not dropped.vision_ok[window].any() and dropped.vision_ok.sum() > 0
+    stuck, _ = inject_smoother(steps, "stuck-contact", 100)
+    assert stuck.contact[window].all()
+    np.testing.assert_array_equal(stuck.forces[120], steps.forces[99])
+
+
+def test_a_cpf_under_every_fault_stays_finite_and_reports_what_it_can():
+    outcomes = hand_faults(1, filters=(FilterSpec("cpf", "cpf"),), progress=False)
+    assert len(outcomes) == 2 * len(FILTER_FAULTS)  # plain and behind the fallback
+    assert all(isinstance(o, FaultOutcome) and o.finite for o in outcomes)
+    reported = {o.fault: o.reported for o in outcomes}
+    assert reported["nan-action"] and reported["nan-reading"]
+    assert reported["stuck-on"] is None and reported["all-sensors-on"] is None
+    assert all(isinstance(o.surprised, bool) for o in outcomes)
+    assert all(np.isfinite(o.error_after) for o in outcomes)
+
+
+def test_growth_is_the_slope_after_the_warm_up():
+    steps = np.arange(100, 10_001, 100)
+    rss = 500.0 + 0.002 * steps  # 2 MB per 1000 steps
+    rss[:5] += 50.0  # a warm-up bump, left out
+    assert growth_mb_per_1000(steps, rss) == pytest.approx(2.0)
+
+
+def test_budget_report_counts_overruns_and_the_allowance():
+    runs = {"idle": {"wall_ms": np.array([95.0, 101.0, 130.0]),
+                     "trial_ms_max": np.array([5.0, 5.0, 5.0])}}
+    report = _budget_report(runs, 0.1)["idle"]
+    assert report["overrun_ms_max"] == pytest.approx(30.0)
+    assert report["allowed_p99_ms"] == pytest.approx(15.0)
+    assert not report["within_budget"]
+
+
+def test_busy_core_runs_a_process_and_stops_it():
+    with BusyCore() as busy:
+        time.sleep(0.2)
+        assert busy._process.is_alive()
+    assert not busy._process.is_alive()
