@@ -121,9 +121,10 @@ def register(commands) -> None:
                    "episodes per policy, spread over the three beliefs", type=int)
     setting_option(closedloop, "--seed", CLOSEDLOOP.seed,
                    "study seed; episode j is seeded from (seed, j)", type=int)
+    runner_options(closedloop)
     closedloop.add_argument("--out", type=Path, required=True,
                             help="output directory (summary.json, closedloop.png, "
-                                 "config.yaml)")
+                                 "config.yaml, trials.jsonl)")
     closedloop.set_defaults(handler=_closedloop)
 
     vt = subcommand(studies, "visuotactile",
@@ -429,7 +430,10 @@ def _closedloop(args: argparse.Namespace) -> int:
 
     config = resolve_closedloop(args)
     solution = solve(config.solver, config.cache_dir, progress=not args.no_progress)
-    summary = run_closedloop_study(config.study, solution, args.out,
+    print(f"planning model ready ({len(solution.model.pomdp.states)} states); episodes "
+          f"load it from {config.cache_dir}")
+    summary = run_closedloop_study(config.study, config.solver, args.out,
+                                   backend=backend_of(args), resume=args.resume,
                                    progress=not args.no_progress,
                                    cache_dir=Path(config.cache_dir))
     write_config(config, args.out)

@@ -6,7 +6,9 @@ offsets -12, 0 and +6 cm, standard deviation 5 cm; 15 deg in orientation as sec.
 Trial ``j`` uses belief ``j mod 3`` and the episode seed ``(seed, j)``, which fixes the
 true object pose and the initial particles, so both policies meet the same thirty objects,
 as on the robot ("we drew ten samples from each initial belief state and used the
-resulting thirty samples [...] to evaluate both policies"). Writes ``summary.json`` (per
+resulting thirty samples [...] to evaluate both policies"). Episodes run through the trial
+runner (:mod:`experiments.runner`): any backend, each kept in ``trials.jsonl`` as it
+finishes, a killed study resumable. Writes ``summary.json`` (per
 policy ``success_rate`` with its 95 % Wilson interval, ``infeasible_actions`` executed,
 ``planning_ms_median``, and every trial's summary) and ``closedloop.png``.
 """
@@ -15,17 +17,18 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from diagrams.herb.closed_loop import estimator_filter
 from diagrams.herb.episode import run_episode
 from diagrams.herb.settings import POLICIES, THESIS_BELIEF_MEANS, EpisodeSettings
+from experiments.runner import Backend, Job, TrialStore, map_trials
 from experiments.statistics import wilson_interval
 from models.settings import settings_to_dict
-from planning.hand.solution import HandSolution
+from planning.hand.solution import HandSolution, HandSolveSettings, solve_hand_problem
 
 THESIS_REAL_ROBOT = {"pomdp": {"successes": 27, "trials": 30},
                      "qmdp": {"successes": 20, "trials": 30}}
@@ -69,26 +72,63 @@ class ClosedLoopSettings:
                        seed=int(np.random.SeedSequence([self.seed, trial]).generate_state(1)[0]))
 
 
-def run_closedloop_study(settings: ClosedLoopSettings, solution: HandSolution, out: Path, *,
+@lru_cache(maxsize=2)
+def _solution(solver: HandSolveSettings, cache_dir: str | None) -> HandSolution:
+    """The solved planning model, once per process: loaded from ``cache_dir`` (where the
+    command solved it before the study began), solved when it is not there."""
+    return solve_hand_problem(solver, cache_dir=None if cache_dir is None else Path(cache_dir),
+                              progress=False)
+
+
+@lru_cache(maxsize=2)
+def _shared_filter(kind: str, solver: HandSolveSettings, cache_dir: str | None):
+    """One estimator filter per process, shared by its episodes (its manifold is costly)."""
+    return estimator_filter(kind, _solution(solver, cache_dir).model.world)
+
+
+def closedloop_trial(settings: ClosedLoopSettings, solver: HandSolveSettings,
+                     cache_dir: str | None, run: str, trial: int) -> dict:
+    """Episode ``trial`` of ``run`` (a policy or the planner): its summary, with the trial
+    and the initial belief (1-based)."""
+    solution = _solution(solver, cache_dir)
+    episode = run_episode(settings.episode_settings(run, trial), solution, progress=False,
+                          filter=_shared_filter(settings.episode.estimator, solver, cache_dir),
+                          cache_dir=None if cache_dir is None else Path(cache_dir))
+    summary = dict(episode.summary)
+    summary["trial"] = trial
+    summary["belief"] = trial % len(settings.beliefs) + 1
+    return summary
+
+
+def trial_store(settings: ClosedLoopSettings, solver: HandSolveSettings, out: Path, *,
+                resume: bool) -> TrialStore:
+    """``out/trials.jsonl``, keyed by every setting an episode depends on (not the policies
+    or the trial count, which only choose episodes: a resumed study may add some)."""
+    relevant = {k: v for k, v in settings_to_dict(settings).items()
+                if k not in ("policies", "trials")}
+    return TrialStore(out, "closedloop", {"study": relevant,
+                                          "solver": settings_to_dict(solver)}, resume=resume)
+
+
+def run_closedloop_study(settings: ClosedLoopSettings, solver: HandSolveSettings, out: Path, *,
+                         backend: Backend = Backend(), resume: bool = False,
                          progress: bool = True, cache_dir: Path | None = None) -> dict:
-    """Run every (policy or planner, trial) episode; write and return the summary
-    (``cache_dir``: where the lattice's IK table is kept, for ``lat-despot``)."""
+    """Run every (policy or planner, trial) episode on ``backend`` (each kept in
+    ``out/trials.jsonl`` as it finishes; ``resume`` runs only the missing ones); write and
+    return the summary. ``cache_dir`` holds the solved model (and the lattice's IK table,
+    for ``lat-despot``); each worker loads them from there."""
     out.mkdir(parents=True, exist_ok=True)
-    shared = estimator_filter(settings.episode.estimator, solution.model.world)
-    results: dict[str, dict] = {}
-    for policy in settings.runs:
-        trials = []
-        for j in tqdm(range(settings.trials), desc=f"closed loop ({policy})", unit="episode",
-                      disable=not progress):
-            episode = run_episode(settings.episode_settings(policy, j), solution, progress=False,
-                                  filter=shared, cache_dir=cache_dir)
-            summary = episode.summary
-            summary["trial"] = j
-            summary["belief"] = j % len(settings.beliefs) + 1
-            trials.append(summary)
-        results[policy] = _aggregate(trials)
-    summary = {"policies": results, "thesis_real_robot": THESIS_REAL_ROBOT,
-               "settings": settings_to_dict(settings), "model_timings_s": solution.timings}
+    cache = None if cache_dir is None else str(cache_dir)
+    store = trial_store(settings, solver, out, resume=resume)
+    jobs = [Job(f"{run}/{j}", (settings, solver, cache, run, j))
+            for run in settings.runs for j in range(settings.trials)]
+    results = map_trials(closedloop_trial, jobs, backend=backend, store=store,
+                         desc="closed loop", progress=progress)
+    runs = {run: _aggregate([r for job, r in zip(jobs, results, strict=True)
+                             if job.args[3] == run]) for run in settings.runs}
+    summary = {"policies": runs, "thesis_real_robot": THESIS_REAL_ROBOT,
+               "settings": settings_to_dict(settings),
+               "model_timings_s": _solution(solver, cache).timings}
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     from experiments.closedloop_plots import plot_closedloop
 
