@@ -33,7 +33,6 @@ from cmanip.options import (
     runner_options,
     setting_option,
     subcommand,
-    workers_option,
 )
 from cmanip.run import add_episode_options, override_episode, override_solver, solve
 from diagrams.herb.settings import POLICIES
@@ -242,9 +241,11 @@ def _register_latdespot(studies) -> None:
                    "Lat-DESPOT's wall-clock cap per decision (s)", type=float)
     setting_option(lat, "--cache", scenes.cache_dir,
                    "where the lattice's IK table is kept")
-    workers_option(lat, "processes for the episodes that plan online")
+    runner_options(lat)
+    lat.add_argument("--no-progress", action="store_true", help="no progress bars")
     lat.add_argument("--out", type=Path, required=True,
-                     help="output directory (summary.json, figures, config.yaml)")
+                     help="output directory (summary.json, figures, config.yaml, "
+                          "trials.jsonl, solved_rel.npz)")
     lat.set_defaults(handler=_latdespot)
 
 
@@ -283,7 +284,8 @@ def _latdespot(args: argparse.Namespace) -> int:
         for scene in config.scenes.scenes:
             SceneSpec.load(scene)
     summary = run_study(config.part, config.rel, config.scenes, args.out,
-                        workers=args.workers)
+                        backend=backend_of(args), resume=args.resume,
+                        progress=not args.no_progress)
     write_config(config, args.out)
     for name, r in summary.get("rel", {}).items():
         success = ""

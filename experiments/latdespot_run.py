@@ -16,27 +16,44 @@ from experiments.latdespot_scenes import (
     settings_dict,
 )
 from experiments.latdespot_study import RelSettings, build_rel_problem, evaluate_rel, solve_rel
+from experiments.runner import Backend
+
+SOLVED_FILE = "solved_rel.npz"
+"""The point-based policy and corner bound of a study, in its directory: the workers of part
+``scenes`` load them, and a resumed study reuses them rather than solving again."""
 
 
 def run_study(part: str, settings: RelSettings, scenes: SceneSettings, out: Path, *,
-              workers: int = 1) -> dict:
+              backend: Backend = Backend(), resume: bool = False,
+              progress: bool = True) -> dict:
     """Part ``rel``, ``scenes``, ``bound`` or ``all`` (see the module docstrings of this
     module and :mod:`experiments.latdespot_scenes`): writes ``summary.json`` (``rel``,
-    ``scenes``, ``bound`` as run) and the PNGs; ``workers`` processes run the episodes that
-    plan online (the results do not depend on it)."""
+    ``scenes``, ``bound`` as run) and the PNGs. The scene episodes run on ``backend``
+    (kept in ``out/trials.jsonl``; ``resume`` runs only the missing ones and reuses the
+    solved policy in ``out``); part ``rel``'s online episodes in ``backend.workers``
+    processes. The results depend on neither."""
     out.mkdir(parents=True, exist_ok=True)
     model, belief, initial = build_rel_problem(settings)
-    policies, costs, corner = solve_rel(settings, model, initial)
+    solved_path = out / SOLVED_FILE
+    reuse = resume and solved_path.is_file()
+    kept = Solved.load(solved_path) if reuse else None
+    policies, costs, corner = solve_rel(settings, model, initial,
+                                        sarsop=None if kept is None else kept.sarsop)
+    if kept is not None:
+        corner = kept.corner
+    else:
+        Solved(policies["rel-sarsop"], corner).save(solved_path)
     summary = {"part": part, "settings": settings_dict(settings, scenes),
                "model": {"states": len(model.pomdp.states),
                          "actions": list(model.pomdp.actions),
-                         "observations": len(model.pomdp.observations), **costs}}
+                         "observations": len(model.pomdp.observations), **costs,
+                         "sarsop_reused_from": str(solved_path) if reuse else None}}
     if part in ("rel", "bound", "all"):
         summary["rel"] = evaluate_rel(settings, model, belief, initial, policies,
-                                      workers=workers, continuous=part != "bound")
+                                      workers=backend.workers, continuous=part != "bound")
     if part in ("scenes", "bound", "all"):
-        solved = Solved(policies["rel-sarsop"], corner)
-        summary["scenes"] = run_scenes(settings, scenes, solved, out, workers=workers)
+        summary["scenes"] = run_scenes(settings, scenes, solved_path, out, backend=backend,
+                                       resume=resume, progress=progress)
     if part in ("bound", "all"):
         summary["bound"] = bound_check(summary["rel"], summary["scenes"])
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")

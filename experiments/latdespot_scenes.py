@@ -35,7 +35,10 @@ steps each:
 
 Episode (scene, policy, model, j) is seeded from (seed, 23, scene, policy, model, j) and
 depends on nothing else (the lattice's answers are deterministic, whichever episode asked
-first), so episodes run in any number of spawned processes, each building its scenes once.
+first), so episodes run on the trial runner (:mod:`experiments.runner`: any backend, each
+kept in ``trials.jsonl`` as it finishes, a killed study resumable), each process building
+the problem once, its scenes when first asked, and loading the solved point-based policy
+from the study's directory.
 DESPOT's budget is a trial count per decision with a wall-clock cap (``lat_despot_trials``,
 ``lat_despot_seconds``); with the trial count set to none the cap alone is the budget
 (the 0.1 s and 1 s figures).
@@ -47,17 +50,17 @@ Lat-POMDP (Theorem 7.2: the first bounds the second).
 
 from __future__ import annotations
 
-import multiprocessing
 from dataclasses import asdict, dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from experiments.latdespot_study import (
     RelSettings,
     build_rel_problem,
 )
+from experiments.runner import Backend, Job, TrialStore, map_trials
 from experiments.statistics import half_width, wilson_interval
 from models.herb.scene import SceneSpec
 from models.planar.polygon import pose_points
@@ -113,11 +116,25 @@ class SceneSettings:
 
 @dataclass(frozen=True)
 class Solved:
-    """What the parent solves once and every worker receives: the point-based policy and
-    its corner upper bound (S,)."""
+    """What the parent solves once and every worker loads from the study's directory: the
+    point-based policy and its corner upper bound (S,)."""
 
     sarsop: AlphaVectorPolicy
     corner: np.ndarray
+
+    def save(self, path: Path) -> None:
+        """Write both as ``.npz``."""
+        np.savez_compressed(path, alphas=self.sarsop.alphas,
+                            alpha_actions=self.sarsop.alpha_actions,
+                            action_names=np.array(self.sarsop.action_names),
+                            corner=self.corner)
+
+    @staticmethod
+    def load(path: Path) -> Solved:
+        data = np.load(path)
+        return Solved(AlphaVectorPolicy(data["alphas"], data["alpha_actions"],
+                                        tuple(str(n) for n in data["action_names"])),
+                      data["corner"])
 
 
 @dataclass(frozen=True)
@@ -280,38 +297,26 @@ class _Worker:
         return self._scenes[scene].run(policy, kind, key)
 
 
-_WORKER: _Worker | None = None
+@lru_cache(maxsize=2)
+def _worker(rel: RelSettings, scenes: SceneSettings, solved_path: str) -> _Worker:
+    return _Worker(rel, scenes, Solved.load(Path(solved_path)))
 
 
-def _start(rel, scenes, solved) -> None:
-    global _WORKER
-    _WORKER = _Worker(rel, scenes, solved)
+def scene_episode(rel: RelSettings, scenes: SceneSettings, solved_path: str,
+                  job: tuple[str, str, str, int]) -> LatEpisode:
+    """Episode ``job`` = (scene, policy, model, j), in whichever process the trial runner
+    chose: the problem built and the solved policy loaded from ``solved_path`` once per
+    process, each scene when first asked."""
+    return _worker(rel, scenes, solved_path).run(job)
 
 
-def _run(job) -> LatEpisode:
-    return _WORKER.run(job)
-
-
-def run_episodes(rel: RelSettings, scenes: SceneSettings, solved: Solved,
-                 jobs: list[tuple[str, str, str, int]], *, workers: int = 1
-                 ) -> list[LatEpisode]:
-    """The episodes of ``jobs`` ((scene, policy, model, j)), in job order, in ``workers``
-    spawned processes (the results do not depend on it)."""
-    bar = tqdm(total=len(jobs), desc="latdespot scenes", unit="episode")
-    out = []
-    if workers <= 1:
-        worker = _Worker(rel, scenes, solved)
-        for job in jobs:
-            out.append(worker.run(job))
-            bar.update()
-    else:
-        context = multiprocessing.get_context("spawn")
-        with context.Pool(workers, initializer=_start, initargs=(rel, scenes, solved)) as pool:
-            for episode in pool.imap(_run, jobs):
-                out.append(episode)
-                bar.update()
-    bar.close()
-    return out
+def trial_store(rel: RelSettings, scenes: SceneSettings, out: Path, *,
+                resume: bool) -> TrialStore:
+    """``out/trials.jsonl``, keyed by every setting an episode depends on (not the trial
+    count, scenes or policies, which only choose episodes: a resumed study may add some)."""
+    relevant = settings_dict(rel, scenes)
+    del relevant["trials"], relevant["scenes"]["scenes"], relevant["scenes"]["policies"]
+    return TrialStore(out, "latdespot-scenes", relevant, resume=resume)
 
 
 def summarise(episodes: list[LatEpisode], kind: str) -> dict:
@@ -357,16 +362,23 @@ def scene_entry(discrete: dict, continuous: dict) -> dict:
     return entry
 
 
-def run_scenes(rel: RelSettings, scenes: SceneSettings, solved: Solved, out: Path, *,
-               workers: int = 1) -> dict:
-    """Every (scene, policy) pair on both models; returns ``{scene: {policy: entry}}`` and
+def run_scenes(rel: RelSettings, scenes: SceneSettings, solved_path: Path, out: Path, *,
+               backend: Backend = Backend(), resume: bool = False,
+               progress: bool = True) -> dict:
+    """Every (scene, policy) pair on both models, episodes on the trial runner (each kept
+    in ``out/trials.jsonl`` as it finishes; ``resume`` runs only the missing ones; workers
+    load the solved policy from ``solved_path``); returns ``{scene: {policy: entry}}`` and
     writes ``lattice_<scene>.npz`` (the edges Lat-DESPOT's first continuous episode asked
     for) for the lattice figure."""
     policies = scenes.policies
     jobs = [(scene, policy, kind, j) for scene in scenes.scenes for policy in policies
             for kind in MODELS for j in range(rel.trials)]
-    episodes = dict(zip(jobs, run_episodes(rel, scenes, solved, jobs, workers=workers),
-                        strict=True))
+    results = map_trials(scene_episode,
+                         [Job("/".join(map(str, job)), (rel, scenes, str(solved_path), job))
+                          for job in jobs],
+                         backend=backend, store=trial_store(rel, scenes, out, resume=resume),
+                         desc="latdespot scenes", progress=progress)
+    episodes = dict(zip(jobs, results, strict=True))
     result: dict[str, dict] = {}
     for scene in scenes.scenes:
         result[scene] = {}

@@ -55,7 +55,7 @@ from planning.hand.policy import qmdp_vectors
 from planning.pomdp.despot import DespotSettings
 from planning.pomdp.generative import TabularGenerative
 from planning.pomdp.online import DespotPlanner
-from planning.pomdp.point_based import PointBasedSolver
+from planning.pomdp.point_based import AlphaVectorPolicy, PointBasedSolver
 from planning.pomdp.progress import SolverProgressBar
 from planning.pomdp.qmdp import solve_mdp
 
@@ -159,21 +159,27 @@ def build_rel_problem(settings: RelSettings) -> tuple[HandPOMDP, GaussianBelief,
     return model, belief, model.belief(samples)
 
 
-def solve_rel(settings: RelSettings, model: HandPOMDP, initial: np.ndarray
-              ) -> tuple[dict, dict, np.ndarray]:
+def solve_rel(settings: RelSettings, model: HandPOMDP, initial: np.ndarray, *,
+              sarsop: AlphaVectorPolicy | None = None) -> tuple[dict, dict, np.ndarray | None]:
     """The three policies, what solving them cost, and the point-based solver's corner
-    upper bound (S,)."""
+    upper bound (S,); with ``sarsop`` given (a resumed study's), that policy is used and
+    the point-based solver not run (the corner is then None: the caller has it)."""
     start = time.perf_counter()
     Q = solve_mdp(model.pomdp)
     qmdp_s = time.perf_counter() - start
-    solver = PointBasedSolver(model.pomdp)
-    bar = SolverProgressBar(settings.solve_seconds, settings.solve_trials,
-                            desc="point-based solver (rel)")
-    start = time.perf_counter()
-    sarsop = solver.solve(settings.solve_seconds, initial_beliefs=initial[None, :],
-                          callback=bar, max_trials=settings.solve_trials)
-    bar.close()
-    solve_s = time.perf_counter() - start
+    corner, lower, upper, solve_s = None, None, None, None
+    if sarsop is None:
+        solver = PointBasedSolver(model.pomdp)
+        bar = SolverProgressBar(settings.solve_seconds, settings.solve_trials,
+                                desc="point-based solver (rel)")
+        start = time.perf_counter()
+        sarsop = solver.solve(settings.solve_seconds, initial_beliefs=initial[None, :],
+                              callback=bar, max_trials=settings.solve_trials)
+        bar.close()
+        solve_s = time.perf_counter() - start
+        if solver.report.history:
+            lower, upper = solver.report.history[-1][1:]
+        corner = solver.corner.copy()
     generative = TabularGenerative(model.pomdp, default_policy="qmdp")
     despot = DespotPlanner(generative, DespotSettings(
         scenarios=settings.despot_scenarios, depth=settings.despot_depth,
@@ -184,11 +190,10 @@ def solve_rel(settings: RelSettings, model: HandPOMDP, initial: np.ndarray
         "rel-despot": DespotOnDiscreteBelief(despot, settings.despot_particles,
                                              np.random.default_rng([settings.seed, 3])),
     }
-    lower, upper = solver.report.history[-1][1:] if solver.report.history else (None, None)
     costs = {"build_s": model.build_seconds, "qmdp_solve_s": qmdp_s,
              "sarsop_solve_s": solve_s, "sarsop_bounds": [lower, upper],
              "sarsop_alpha_vectors": len(sarsop.alphas)}
-    return policies, costs, solver.corner.copy()
+    return policies, costs, corner
 
 
 def evaluate_rel(settings: RelSettings, model: HandPOMDP, belief: GaussianBelief,

@@ -123,3 +123,32 @@ def test_the_policies_option_selects_the_scene_policies():
     config = resolve_latdespot(args)
     assert config.scenes.policies == ("lat-despot", "lift-sarsop")
     assert config.scenes.lat_despot_trials is None  # 0: the wall-clock cap alone
+
+
+def test_a_resumed_scenes_part_reuses_the_solved_policy_and_the_episodes(tmp_path,
+                                                                         small_problem):
+    """Part ``scenes`` keeps each episode in trials.jsonl and its solved policy in
+    solved_rel.npz; resumed with one more trial it runs only the new episodes and agrees
+    with a whole run of that many."""
+    config = tmp_path / "config.yaml"
+    config.write_text(yaml.safe_dump({"scenes": {
+        "lattice_x_range_m": [-0.04, 0.10], "lattice_y_range_m": [-0.12, 0.12],
+        "cache_dir": str(tmp_path / "cache")}}))
+    common = ["experiment", "latdespot", "--config", str(config), "--part", "scenes",
+              "--scene", "right_obstacles", "--policies", "lift-qmdp", "lat-despot",
+              "--horizon", "4", "--problem", str(small_problem), "--solve-trials", "5",
+              "--lat-despot-trials", "3", "--backend", "serial", "--no-progress"]
+    out, whole = tmp_path / "resumed", tmp_path / "whole"
+    assert main([*common, "--trials", "2", "--out", str(out)]) == 0
+    assert (out / "solved_rel.npz").is_file()
+    assert len((out / "trials.jsonl").read_text().splitlines()) == 1 + 2 * 2 * 2
+    assert main([*common, "--trials", "3", "--resume", "--out", str(out)]) == 0
+    assert len((out / "trials.jsonl").read_text().splitlines()) == 1 + 2 * 2 * 3
+    resumed = json.loads((out / "summary.json").read_text())
+    assert resumed["model"]["sarsop_reused_from"].endswith("solved_rel.npz")
+    assert main([*common, "--trials", "3", "--out", str(whole)]) == 0
+    fresh = json.loads((whole / "summary.json").read_text())
+    for policy, entry in fresh["scenes"]["right_obstacles"].items():
+        again = resumed["scenes"]["right_obstacles"][policy]
+        for key in ("discounted_value", "success_rate", "infeasible_rate", "trials"):
+            assert again[key] == entry[key], (policy, key)
