@@ -8,20 +8,21 @@ and rollout policy, as the thesis' Rel-DESPOT) and tracks the object with the pr
 manifold particle filter (thesis Alg. 4.2, analytic manifold: the sensors discriminate
 contact perfectly, so a conventional filter's particles would rarely land on the contact
 manifold). Episode j is seeded from (seed, 19, j) and depends on nothing else, so episodes
-run in any number of processes (spawned; each builds the model once from the settings).
+run on the trial runner, any backend (each process builds the model once from the
+settings).
 """
 
 from __future__ import annotations
 
-import multiprocessing
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
-from tqdm import tqdm
 
 from estimation.hand.manifolds import AnalyticManifold
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.factory import make_filter
+from experiments.runner import Backend, Job, map_trials
 from experiments.statistics import half_width, wilson_interval
 from planning.hand.generative import ContinuousHandGenerative
 from planning.pomdp.despot import DespotSettings
@@ -96,39 +97,27 @@ class EpisodeRunner:
         return ContinuousEpisode(in_goal, total, planning_ms, trials, crossings, degenerate)
 
 
-_WORKER: EpisodeRunner | None = None
+@lru_cache(maxsize=2)
+def _runner(settings, build) -> EpisodeRunner:
+    return EpisodeRunner(settings, build)
 
 
-def _start_worker(settings, build) -> None:
-    global _WORKER
-    _WORKER = EpisodeRunner(settings, build)
+def continuous_episode(settings, build, episode: int) -> ContinuousEpisode:
+    """Episode ``episode`` in whichever process the trial runner chose (the problem built
+    once per process)."""
+    return _runner(settings, build).run(episode)
 
 
-def _run_episode(episode: int) -> ContinuousEpisode:
-    return _WORKER.run(episode)
-
-
-def run_continuous_episodes(settings, build, *, workers: int = 1
-                            ) -> list[ContinuousEpisode]:
-    """``settings.trials`` episodes (in episode order) in ``workers`` processes, each
-    building the problem with ``build(settings)`` (a module-level function, so that it
-    reaches spawned processes by name; e.g.
+def run_continuous_episodes(settings, build, *, backend: Backend = Backend(),
+                            progress: bool = True) -> list[ContinuousEpisode]:
+    """``settings.trials`` episodes (in episode order) on the trial runner's ``backend``,
+    each process building the problem with ``build(settings)`` (a module-level function,
+    so that it reaches other processes by name; e.g.
     :func:`experiments.latdespot_study.build_rel_problem`)."""
-    bar = tqdm(total=settings.trials, desc="rel rel-despot-continuous", unit="episode")
-    episodes = []
-    if workers <= 1:
-        runner = EpisodeRunner(settings, build)
-        for j in range(settings.trials):
-            episodes.append(runner.run(j))
-            bar.update()
-    else:
-        context = multiprocessing.get_context("spawn")
-        with context.Pool(workers, initializer=_start_worker, initargs=(settings, build)) as pool:
-            for episode in pool.imap(_run_episode, range(settings.trials)):
-                episodes.append(episode)
-                bar.update()
-    bar.close()
-    return episodes
+    jobs = [Job(f"rel-despot-continuous/{j}", (settings, build, j))
+            for j in range(settings.trials)]
+    return map_trials(continuous_episode, jobs, backend=backend,
+                      desc="rel rel-despot-continuous", progress=progress)
 
 
 def summarise_episodes(episodes: list[ContinuousEpisode]) -> dict:

@@ -30,8 +30,8 @@ def run_study(part: str, settings: RelSettings, scenes: SceneSettings, out: Path
     module and :mod:`experiments.latdespot_scenes`): writes ``summary.json`` (``rel``,
     ``scenes``, ``bound`` as run) and the PNGs. The scene episodes run on ``backend``
     (kept in ``out/trials.jsonl``; ``resume`` runs only the missing ones and reuses the
-    solved policy in ``out``); part ``rel``'s online episodes in ``backend.workers``
-    processes. The results depend on neither."""
+    solved policy in ``out``); part ``rel``'s online episodes on ``backend`` too (not
+    kept). The results depend on neither."""
     out.mkdir(parents=True, exist_ok=True)
     model, belief, initial = build_rel_problem(settings)
     solved_path = out / SOLVED_FILE
@@ -50,7 +50,7 @@ def run_study(part: str, settings: RelSettings, scenes: SceneSettings, out: Path
                          "sarsop_reused_from": str(solved_path) if reuse else None}}
     if part in ("rel", "bound", "all"):
         summary["rel"] = evaluate_rel(settings, model, belief, initial, policies,
-                                      workers=backend.workers, continuous=part != "bound")
+                                      backend=backend, continuous=part != "bound")
     if part in ("scenes", "bound", "all"):
         summary["scenes"] = run_scenes(settings, scenes, solved_path, out, backend=backend,
                                        resume=resume, progress=progress)

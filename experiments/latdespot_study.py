@@ -46,6 +46,7 @@ from experiments.handplan_study import (
     evaluate_discrete,
 )
 from experiments.latdespot_continuous import run_continuous_episodes, summarise_episodes
+from experiments.runner import Backend
 from experiments.timing import median_ms
 from models.planar.world import PlanarWorld
 from planning.hand.beliefs import GaussianBelief
@@ -197,7 +198,7 @@ def solve_rel(settings: RelSettings, model: HandPOMDP, initial: np.ndarray, *,
 
 
 def evaluate_rel(settings: RelSettings, model: HandPOMDP, belief: GaussianBelief,
-                 initial: np.ndarray, policies: dict, *, workers: int = 1,
+                 initial: np.ndarray, policies: dict, *, backend: Backend = Backend(),
                  continuous: bool = True) -> dict:
     """Part ``rel``'s entries ``{policy: {...}}``: each policy's value on the discrete
     model and (``continuous``) its success on the continuous one, and Rel-DESPOT on the
@@ -227,5 +228,5 @@ def evaluate_rel(settings: RelSettings, model: HandPOMDP, belief: GaussianBelief
                           "continuous_discounted_value": c["discounted_value"],
                           "continuous_discounted_value_ci95": c["discounted_value_ci95"]})
     rel["rel-despot-continuous"] = summarise_episodes(
-        run_continuous_episodes(settings, build_rel_problem, workers=workers))
+        run_continuous_episodes(settings, build_rel_problem, backend=backend))
     return rel

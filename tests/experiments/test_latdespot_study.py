@@ -62,11 +62,14 @@ def test_rel_runs_end_to_end_and_replays_its_config(tmp_path, capsys, small_prob
 def test_continuous_episodes_do_not_depend_on_the_worker_count(small_problem):
     from experiments.latdespot_continuous import run_continuous_episodes
     from experiments.latdespot_study import RelSettings, build_rel_problem
+    from experiments.runner import Backend
 
     settings = RelSettings(trials=3, horizon=4, problem=str(small_problem),
                            continuous_despot_trials=3)
-    alone = run_continuous_episodes(settings, build_rel_problem, workers=1)
-    spread = run_continuous_episodes(settings, build_rel_problem, workers=2)
+    alone = run_continuous_episodes(settings, build_rel_problem, backend=Backend("serial"),
+                                    progress=False)
+    spread = run_continuous_episodes(settings, build_rel_problem,
+                                     backend=Backend("processes", 2), progress=False)
     for a, b in zip(alone, spread, strict=True):
         np.testing.assert_array_equal(a.in_goal, b.in_goal)
         assert a.discounted_return == b.discounted_return
