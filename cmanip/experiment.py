@@ -137,8 +137,9 @@ def register(commands) -> None:
     setting_option(vt, "--noise-trials", VISUOTACTILE.study.noise_trials,
                    "training runs for the noise identification", type=int)
     setting_option(vt, "--rig", "the built-in pusher_slider.yaml", "rig YAML")
+    runner_options(vt, resume=False)  # the simulated logs in OUT/logs are always reused
     vt.add_argument("--out", type=Path, required=True,
-                    help="output directory (summary.json, figures, config.yaml)")
+                    help="output directory (summary.json, figures, config.yaml, logs/)")
     vt.add_argument("--no-progress", action="store_true", help="no progress bars")
     vt.set_defaults(handler=_visuotactile)
     _register_latdespot(studies)
@@ -480,7 +481,8 @@ def _visuotactile(args) -> int:
     settings = config.study
     if settings.trials < 2 or settings.noise_trials < 1:
         raise ValueError("--trials must be >= 2 and --noise-trials >= 1")
-    summaries = run_study(config.part, settings, args.out, progress=not args.no_progress)
+    summaries = run_study(config.part, settings, args.out, progress=not args.no_progress,
+                          backend=backend_of(args))
     write_config(config, args.out)
     for part, summary in summaries.items():
         print(f"{part}:")

@@ -20,8 +20,8 @@ def subcommand(parent, name: str, help: str, description: str | None = None):
                              formatter_class=HelpFormatter)
 
 
-def runner_options(parser) -> None:
-    """Where a study's trials run and whether it picks up a killed run:
+def runner_options(parser, *, resume: bool = True) -> None:
+    """Where a study's trials run and (with ``resume``) whether it picks up a killed run:
     ``--backend serial|processes|ray``, ``--workers N``, ``--address HOST:PORT|auto`` (a Ray
     cluster) and ``--resume``; read back by :func:`backend_of`."""
     parser.add_argument("--backend", choices=("serial", "processes", "ray"),
@@ -31,9 +31,10 @@ def runner_options(parser) -> None:
     workers_option(parser, "worker processes (processes) or CPUs (local ray)")
     parser.add_argument("--address", default=None,
                         help="a Ray cluster to run on (HOST:PORT or auto; ray backend)")
-    parser.add_argument("--resume", action="store_true",
-                        help="keep the finished trials in OUT/trials.jsonl and run only the "
-                             "missing ones (same settings required)")
+    if resume:
+        parser.add_argument("--resume", action="store_true",
+                            help="keep the finished trials in OUT/trials.jsonl and run only "
+                                 "the missing ones (same settings required)")
 
 
 def backend_of(args: argparse.Namespace):

@@ -41,6 +41,7 @@ from estimation.pushing.smoother import (
     VisuoTactileSmoother,
     recommended_settings,
 )
+from experiments.runner import Backend, Job, map_trials
 from models.objects import ObjectSpec
 from models.pusher.log import PushLog
 from models.pusher.procedure import standard_procedure
@@ -82,11 +83,40 @@ def trial_seed(seed: int, trial: int, object_name: str, surface: str) -> int:
     return zlib.crc32(f"{seed}/{trial}/{object_name}/{surface}".encode())
 
 
+def log_path(settings: VisuotactileSettings, object_name: str, surface: str, trial: int,
+             logs: Path, *, training: bool = False) -> Path:
+    """Where the log of one trial is kept."""
+    seed = settings.seed + (TRAINING_SEED_OFFSET if training else 0)
+    return logs / f"{'train_' if training else ''}{object_name}_{surface}_{seed}_{trial}.csv"
+
+
+def simulated_log_file(settings: VisuotactileSettings, object_name: str, surface: str,
+                       trial: int, logs: str, training: bool = False) -> str:
+    """The path of one trial's log, simulated first unless already there (a trial of the
+    trial runner: the logs directory is the study's store)."""
+    simulated_log(settings, object_name, surface, trial, Path(logs), training=training)
+    return str(log_path(settings, object_name, surface, trial, Path(logs), training=training))
+
+
+def simulated_logs(settings: VisuotactileSettings, object_name: str, surface: str,
+                   logs: Path, *, count: int, training: bool = False,
+                   backend: Backend = Backend(), progress: bool = True) -> list[PushLog]:
+    """``count`` trials' logs, the missing ones simulated on ``backend`` (Drake, about a
+    minute each) and every one read from ``logs``."""
+    jobs = [Job(f"{object_name}/{surface}/{i}",
+                (settings, object_name, surface, i, str(logs), training))
+            for i in range(count)]
+    paths = map_trials(simulated_log_file, jobs, backend=backend,
+                       desc=f"simulating {'training ' if training else ''}"
+                            f"{object_name}/{surface}", progress=progress)
+    return [PushLog.read(Path(path)) for path in paths]
+
+
 def simulated_log(settings: VisuotactileSettings, object_name: str, surface: str, trial: int,
                   logs: Path, *, training: bool = False) -> PushLog:
     """The log of one trial, simulated (and written to ``logs``) unless already there."""
     seed = settings.seed + (TRAINING_SEED_OFFSET if training else 0)
-    path = logs / f"{'train_' if training else ''}{object_name}_{surface}_{seed}_{trial}.csv"
+    path = log_path(settings, object_name, surface, trial, logs, training=training)
     if path.is_file():
         return PushLog.read(path)
     from diagrams.pusher.simulation import simulate_push  # Drake only when simulating
@@ -99,7 +129,9 @@ def simulated_log(settings: VisuotactileSettings, object_name: str, surface: str
                         seed=int(rng.integers(2**31)), object_name=object_name,
                         initial_pose=start)
     logs.mkdir(parents=True, exist_ok=True)
-    run.log.write(path)
+    partial = path.with_name(path.name + ".part")  # a killed run leaves no half log
+    run.log.write(partial)
+    partial.replace(path)
     return run.log
 
 
@@ -215,13 +247,13 @@ def compare(methods: tuple[Method, ...], logs: list[PushLog], polygon: np.ndarra
 
 
 # -- parts
-def noise_model(settings: VisuotactileSettings, out: Path, progress: bool = True
-                ) -> tuple[PushingNoise, dict]:
+def noise_model(settings: VisuotactileSettings, out: Path, progress: bool = True, *,
+                backend: Backend = Backend()) -> tuple[PushingNoise, dict]:
     """Identify (or load ``out/noise.json``) the noise model from training runs."""
     path = out / "noise.json"
-    logs = [simulated_log(settings, "rect1", "plywood", i, out / "logs", training=True)
-            for i in tqdm(range(settings.noise_trials), desc="training runs",
-                          disable=not progress)]
+    logs = simulated_logs(settings, "rect1", "plywood", out / "logs",
+                          count=settings.noise_trials, training=True, backend=backend,
+                          progress=progress)
     runs = [PushingSteps.from_log(log) for log in logs]
     noise, residuals, c = identify_from_runs(runs, ObjectSpec.load("rect1").footprint())
     if path.is_file():
@@ -232,21 +264,23 @@ def noise_model(settings: VisuotactileSettings, out: Path, progress: bool = True
 
 
 def run_part(part: str, settings: VisuotactileSettings, out: Path,
-             progress: bool = True) -> dict:
-    """Run one part; returns its summary (also merged into ``out/summary.json``)."""
+             progress: bool = True, *, backend: Backend = Backend()) -> dict:
+    """Run one part; returns its summary (also merged into ``out/summary.json``). The
+    push simulations run on ``backend`` (their logs kept in ``out/logs``, so a killed study
+    simulates only what is missing); the estimators run here, one after another, so that
+    their timings are of an otherwise idle process."""
     from experiments import visuotactile_plots as plots
 
     if part not in PARTS:
         raise ValueError(f"unknown part {part!r}; one of {', '.join(PARTS)} or all")
-    noise, identification = noise_model(settings, out, progress)
+    noise, identification = noise_model(settings, out, progress, backend=backend)
     folder = out / part
     folder.mkdir(parents=True, exist_ok=True)
     logs_dir = out / "logs"
 
     def trials(object_name="rect1", surface="plywood"):
-        return [simulated_log(settings, object_name, surface, i, logs_dir)
-                for i in tqdm(range(settings.trials), desc=f"simulating {object_name}/{surface}",
-                              disable=not progress)]
+        return simulated_logs(settings, object_name, surface, logs_dir,
+                              count=settings.trials, backend=backend, progress=progress)
 
     rect1 = ObjectSpec.load("rect1").footprint()
     if part == "noise":
@@ -304,10 +338,10 @@ def run_part(part: str, settings: VisuotactileSettings, out: Path,
 
 
 def run_study(part: str, settings: VisuotactileSettings, out: Path,
-              progress: bool = True) -> dict:
+              progress: bool = True, *, backend: Backend = Backend()) -> dict:
     """Run ``part`` (or ``all``); returns ``{part: summary}``."""
     parts = PARTS if part == "all" else (part,)
-    return {p: run_part(p, settings, out, progress) for p in parts}
+    return {p: run_part(p, settings, out, progress, backend=backend) for p in parts}
 
 
 def _merge(path: Path, part: str, summary: dict) -> None:

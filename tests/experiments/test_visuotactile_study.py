@@ -59,3 +59,20 @@ def test_bench_on_a_log_writes_the_issue_keys(synthetic_push_log, tmp_path):
     for key in ("update_ms_mean", "update_ms_p99", "update_ms_max", "relinearize_ms_mean"):
         assert np.isfinite(report[key]) and report[key] > 0
     assert report["update_ms_max"] >= report["update_ms_p99"] >= 0
+
+
+def test_simulated_logs_reuse_the_logs_directory(tmp_path, synthetic_push_log):
+    """The trial runner's jobs for the push simulations read a log that is already in the
+    logs directory rather than simulating it again (what makes a killed study cheap to
+    restart); a half-written log never takes a log's name."""
+    from experiments.runner import Backend
+    from experiments.visuotactile_study import VisuotactileSettings, log_path, simulated_logs
+
+    settings = VisuotactileSettings(trials=2)
+    for i in range(2):
+        synthetic_push_log.write(log_path(settings, "rect1", "plywood", i, tmp_path))
+    logs = simulated_logs(settings, "rect1", "plywood", tmp_path, count=2,
+                          backend=Backend("serial"), progress=False)
+    assert len(logs) == 2
+    np.testing.assert_allclose(logs[1].t, synthetic_push_log.t, atol=1e-6)
+    assert not list(tmp_path.glob("*.part"))
