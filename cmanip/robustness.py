@@ -4,7 +4,8 @@ Parts: ``malformed`` (:mod:`cmanip.malformed`), ``faults``
 (:mod:`experiments.fault_bench`), ``budgets`` and ``memory``
 (:mod:`experiments.load_bench`). The report holds each part's details and, at its top,
 ``malformed_tried``, ``malformed_clear_error``, ``faults_injected``, ``faults_recovered``
-(with the prior fallback, and ``faults_recovered_without_fallback``),
+(the robust filters, with the outlier gate; ``faults_recovered_plain``: the filters as
+the thesis has them),
 ``budget_overrun_ms_p99`` (the worse planner's p99 overrun under load) and
 ``memory_growth_mb_per_1000_steps`` (the worse of the two long runs).
 """
@@ -50,18 +51,18 @@ def _faults(trials: int, seed: int, progress: bool) -> dict:
     faults = measure_faults(trials=trials, seed=seed, progress=progress)
     outcomes = faults["fault_outcomes"]
     print(f"faults: {faults['faults_injected']} injected, {faults['faults_recovered']} "
-          f"recovered with the prior fallback ({faults['faults_recovered_without_fallback']} "
-          f"without), {faults['faults_non_finite']} with a non-finite estimate; "
+          f"recovered by the robust filters ({faults['faults_recovered_plain']} by the "
+          f"thesis' filters), {faults['faults_non_finite']} with a non-finite estimate; "
           f"{faults['faults_reported']} of {faults['faults_non_finite_input']} non-finite "
           f"inputs reported")
     by = {}
     for o in outcomes:
-        key = (o["estimator"], o["fallback"])
+        key = (o["estimator"], o["robust"])
         done, total = by.get(key, (0, 0))
         by[key] = (done + o["recovered"], total + 1)
-    for (estimator, fallback), (done, total) in by.items():
-        print(f"  {estimator:16s} {'with' if fallback else 'without':7s} fallback: "
-              f"{done}/{total} recovered")
+    for (estimator, robust), (done, total) in by.items():
+        print(f"  {estimator:16s} {'robust' if robust else 'thesis':6s}: {done}/{total} "
+              f"recovered")
     return faults
 
 

@@ -144,18 +144,22 @@ class FilterRun:
     projection: ProjectionStats | None
 
 
-def build_filter(world: ArmWorld, kind: str, settings: ConfigestSettings):
+def build_filter(world: ArmWorld, kind: str, settings: ConfigestSettings, *,
+                 outlier_log_evidence: float | None = None):
     """Filter ``kind`` (one of :data:`FILTERS`) for ``world``: the filter, the particles
-    it propagates (the MPF's n_c) and its manifold (None for the CPF)."""
+    it propagates (the MPF's n_c) and its manifold (None for the CPF); with
+    ``outlier_log_evidence``, the filter's outlier gate (the study's filters have none)."""
     if kind == "cpf":
-        return make_filter("cpf", world), settings.particles, None
+        return (make_filter("cpf", world, outlier_log_evidence=outlier_log_evidence),
+                settings.particles, None)
     strategy = kind.split("-", 1)[1]
     manifold = (ExplicitTwoLinkManifold(world) if strategy == "explicit" else
                 ProjectionManifold(world, strategy=strategy, method=settings.method,
                                    ball_radius_rad=settings.ball_radius_rad,
                                    constraints=settings.constraints))
     filt = make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
-                       mixing_rate=settings.mixing_rate, dual_share=settings.dual_share)
+                       mixing_rate=settings.mixing_rate, dual_share=settings.dual_share,
+                       outlier_log_evidence=outlier_log_evidence)
     return filt, settings.particles - settings.dual_particles, manifold
 
 

@@ -207,11 +207,13 @@ def run_trial(settings: TrialSettings, filters: tuple[FilterSpec, ...], study_se
 
 
 def build_filter(world, settings: TrialSettings, spec: FilterSpec, mean, std, action,
-                 study_seed: int, rng: np.random.Generator):
+                 study_seed: int, rng: np.random.Generator, *,
+                 outlier_log_evidence: float | None = None):
     """The filter of ``spec`` for a trial: the CPF, or the MPF with the AM, RS (the
-    study's shared set) or TR (this trial's rollouts from the belief) manifold."""
+    study's shared set) or TR (this trial's rollouts from the belief) manifold; with
+    ``outlier_log_evidence``, its outlier gate (the study's filters have none)."""
     if spec.kind == "cpf":
-        return make_filter("cpf", world)
+        return make_filter("cpf", world, outlier_log_evidence=outlier_log_evidence)
     if spec.kind == "am":
         manifold = _analytic(settings.object, settings.sensors, settings.am_dtheta_deg)
     elif spec.kind == "rs":
@@ -225,7 +227,7 @@ def build_filter(world, settings: TrialSettings, spec: FilterSpec, mean, std, ac
         raise ValueError(f"unknown filter kind {spec.kind!r}")
     phi = settings.mixing_rate if spec.mixing_rate is None else spec.mixing_rate
     return make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
-                       mixing_rate=phi)
+                       mixing_rate=phi, outlier_log_evidence=outlier_log_evidence)
 
 
 def condition_trial(condition: Condition, seed: int, trial: int) -> TrialResult:

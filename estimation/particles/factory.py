@@ -17,7 +17,8 @@ particle filter (Alg. 4.2), which needs a contact-manifold representation."""
 
 def make_filter(kind: str, world: FilterModel, manifold: ContactManifold | None = None, *,
                 dual_particles: int = 25, mixing_rate: float = 0.1,
-                dual_share: str = "fixed", resample_size: int | None = None
+                dual_share: str = "fixed", resample_size: int | None = None,
+                outlier_log_evidence: float | None = None
                 ) -> ConventionalParticleFilter | ManifoldParticleFilter:
     """A filter of ``kind`` over ``world``'s transition and observation models.
 
@@ -31,15 +32,19 @@ def make_filter(kind: str, world: FilterModel, manifold: ContactManifold | None 
         dual_share: the MPF's split between its sets, ``fixed`` (Alg. 4.2) or ``density``
             (:class:`ManifoldParticleFilter`).
         resample_size: the CPF's particle count after resampling (default: unchanged).
+        outlier_log_evidence: either filter's outlier gate (None: the thesis; see
+            :class:`ConventionalParticleFilter`).
 
     Raises:
         ValueError: an unknown kind, or ``mpf`` without a manifold.
     """
     if kind == "cpf":
-        return ConventionalParticleFilter(world, resample_size)
+        return ConventionalParticleFilter(world, resample_size,
+                                          outlier_log_evidence=outlier_log_evidence)
     if kind == "mpf":
         if manifold is None:
             raise ValueError("the MPF needs a contact-manifold representation")
         return ManifoldParticleFilter(world, manifold, dual_particles=dual_particles,
-                                      mixing_rate=mixing_rate, dual_share=dual_share)
+                                      mixing_rate=mixing_rate, dual_share=dual_share,
+                                      outlier_log_evidence=outlier_log_evidence)
     raise ValueError(f"unknown filter kind {kind!r}; choose from {', '.join(FILTER_KINDS)}")

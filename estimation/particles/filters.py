@@ -17,6 +17,10 @@ from estimation.particles.kde import leave_one_out_log_density, log_density
 from estimation.particles.logmath import log_sum_exp
 from models.protocols import FilterModel
 
+SURPRISE = 1e-3
+"""A reading whose evidence p(o | b+) is below this surprises the belief (a caller may
+flag it; :attr:`UpdateDiagnostics.log_evidence`)."""
+
 SAMPLING_FAILURE_LIKELIHOOD = 0.1
 """A dual draw fails when every sample has p(o | s) below this (thesis sec. 4.3.5)."""
 
@@ -57,11 +61,10 @@ class UpdateDiagnostics:
             particles, the reading's marginal likelihood under the prediction (0 when no
             reading was weighed); a reading far less likely than usual is a surprise a
             caller can flag (-inf: degenerate).
-        reinvigorated: particles replaced by draws from the prior predictive
-            (:class:`estimation.particles.recovery.PriorFallback`).
-        rejected: ``""``, or the input that was not finite and was not used:
-            ``"action"`` (the update was skipped, the belief kept as it was) or
-            ``"observation"`` (the belief was propagated and not weighted).
+        rejected: ``""``, or the input that was not used: ``"action"`` (not finite: the
+            update was skipped, the belief kept as it was), ``"observation"`` (not
+            finite) or ``"outlier"`` (its evidence below the filter's outlier gate); for
+            both of these the belief was propagated and not weighted.
     """
 
     contact_observed: bool
@@ -69,7 +72,6 @@ class UpdateDiagnostics:
     sampling_failed: bool = False
     degenerate: bool = False
     log_evidence: float = 0.0
-    reinvigorated: int = 0
     rejected: str = ""
 
 
@@ -86,14 +88,21 @@ def non_finite_input(action: np.ndarray, observation: np.ndarray) -> str:
     return ""
 
 
-def _unweighted(belief: ParticleBelief, predicted: np.ndarray, rejected: str
-                ) -> tuple[ParticleBelief, UpdateDiagnostics]:
+def _unweighted(belief: ParticleBelief, predicted: np.ndarray, rejected: str,
+                log_evidence: float = 0.0) -> tuple[ParticleBelief, UpdateDiagnostics]:
     """The update when an input was rejected: the belief as it was (no action) or its
-    prediction with the prior weights (no reading)."""
+    prediction with the prior weights (no usable reading)."""
     if rejected == "action":
         return belief, UpdateDiagnostics(False, rejected=rejected)
     return (ParticleBelief(predicted, np.array(belief.log_weights), belief.angular),
-            UpdateDiagnostics(False, rejected=rejected))
+            UpdateDiagnostics(False, log_evidence=log_evidence, rejected=rejected))
+
+
+def _check_gate(outlier_log_evidence: float | None) -> None:
+    if outlier_log_evidence is not None and not outlier_log_evidence < 0:
+        raise ValueError(f"outlier_log_evidence must be < 0 or None, got "
+                         f"{outlier_log_evidence}")
+
 
 
 def _log_evidence(belief: ParticleBelief, log_w: np.ndarray) -> float:
@@ -114,11 +123,21 @@ class ConventionalParticleFilter:
     Args:
         world: the transition and observation models (e.g. the planar world).
         resample_size: particles after resampling (default: keep the count).
+        outlier_log_evidence: beyond the thesis, a gate on the reading's evidence: a
+            reading with log p(o | b+) below it is taken as a sensor fault rather than
+            information and the belief is propagated without weighting (reported as
+            ``rejected="outlier"``); None (the thesis) weighs every reading. Weighing a
+            reading no particle explains puts the whole belief on whichever particles
+            explain it least badly (an arm jammed into an obstacle when every sensor
+            reads contact), from which it does not come back.
     """
 
-    def __init__(self, world: FilterModel, resample_size: int | None = None):
+    def __init__(self, world: FilterModel, resample_size: int | None = None, *,
+                 outlier_log_evidence: float | None = None):
+        _check_gate(outlier_log_evidence)
         self.world = world
         self.resample_size = resample_size
+        self.outlier_log_evidence = outlier_log_evidence
 
     def update(self, belief: ParticleBelief, action: np.ndarray, observation: np.ndarray, *,
                rng: np.random.Generator) -> tuple[ParticleBelief, UpdateDiagnostics]:
@@ -130,6 +149,9 @@ class ConventionalParticleFilter:
             return _unweighted(belief, predicted, rejected)
         log_w = belief.log_weights + self.world.log_likelihood(observation, predicted, action)
         evidence = _log_evidence(belief, log_w)
+        gate = self.outlier_log_evidence
+        if gate is not None and evidence < gate:
+            return _unweighted(belief, predicted, "outlier", evidence)
         degenerate = _normalised(log_w) is None
         if degenerate:
             log_w = np.array(belief.log_weights)
@@ -169,11 +191,17 @@ class ManifoldParticleFilter:
             set samples the manifold well; the duals get phi * min(1, D_d / D_c). Where no
             conventional particle explains the observation, p(o | s) makes D_c small and
             the duals keep phi (the CPF's failure the duals are there for).
+        outlier_log_evidence: the gate of :class:`ConventionalParticleFilter`, on the
+            conventional set's evidence, applied only when no dual explains the reading
+            either (the draw failed, or the reading is free): a reading the prior does
+            not explain but the contact manifold does is what the duals are for.
     """
 
     def __init__(self, world: FilterModel, manifold: ContactManifold, *,
                  dual_particles: int = 25, mixing_rate: float = 0.1,
-                 dual_share: str = "fixed"):
+                 dual_share: str = "fixed", outlier_log_evidence: float | None = None):
+        _check_gate(outlier_log_evidence)
+        self.outlier_log_evidence = outlier_log_evidence
         if not 0.0 <= mixing_rate <= 1.0:
             raise ValueError(f"mixing_rate must be in [0, 1], got {mixing_rate}")
         if dual_share not in DUAL_SHARES:
@@ -199,6 +227,7 @@ class ManifoldParticleFilter:
         observation = np.asarray(observation, dtype=bool)
         prior_w = belief.weights
         cpf_ll = self.world.log_likelihood(observation, predicted, action)
+        evidence = _log_evidence(belief, belief.log_weights + cpf_ll)
         cpf = _normalised(belief.log_weights + cpf_ll)
         contact = bool(observation.any())
         parts_states, parts_log_w = [], []
@@ -209,6 +238,10 @@ class ManifoldParticleFilter:
                 predicted=ParticleBelief(predicted, belief.log_weights, belief.angular))
             dual_ll = self.world.log_likelihood(observation, duals, action)
             failed = bool(np.all(dual_ll < np.log(SAMPLING_FAILURE_LIKELIHOOD)))
+        gate = self.outlier_log_evidence
+        if gate is not None and evidence < gate and (failed or not contact):
+            return _unweighted(belief, predicted, "outlier", evidence)
+        if contact:
             if not failed:
                 dual_prior = log_density(duals, predicted, prior_w, angular=belief.angular)
                 dual = _normalised(dual_prior)
@@ -235,8 +268,7 @@ class ManifoldParticleFilter:
             parts_states, parts_log_w = [predicted], [np.log(prior_w)]
         posterior = ParticleBelief(np.concatenate(parts_states), np.concatenate(parts_log_w),
                                    belief.angular)
-        diagnostics = UpdateDiagnostics(contact, dual_used, failed, degenerate,
-                                        _log_evidence(belief, belief.log_weights + cpf_ll))
+        diagnostics = UpdateDiagnostics(contact, dual_used, failed, degenerate, evidence)
         return posterior.resample(len(belief), rng=rng), diagnostics
 
 

@@ -47,7 +47,7 @@ def test_inject_smoother_freezes_and_drops(synthetic_push_log):
 
 def test_a_cpf_under_every_fault_stays_finite_and_reports_what_it_can():
     outcomes = hand_faults(1, filters=(FilterSpec("cpf", "cpf"),), progress=False)
-    assert len(outcomes) == 2 * len(FILTER_FAULTS)  # plain and behind the fallback
+    assert len(outcomes) == 2 * len(FILTER_FAULTS)  # as in the thesis and robust
     assert all(isinstance(o, FaultOutcome) and o.finite for o in outcomes)
     reported = {o.fault: o.reported for o in outcomes}
     assert reported["nan-action"] and reported["nan-reading"]

@@ -1,6 +1,6 @@
 """The filters under bad inputs: non-finite actions and readings are left out and
-reported, the evidence of a reading is reported, and the prior fallback brings a lost
-belief back."""
+reported, the evidence of a reading is reported, and the outlier gate passes over a
+reading no state explains."""
 
 import numpy as np
 import pytest
@@ -8,7 +8,6 @@ import pytest
 from estimation.hand.manifolds import AnalyticManifold
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.factory import make_filter
-from estimation.particles.recovery import PriorFallback
 from models.planar.world import PlanarWorld
 
 AHEAD = np.array([0.005, 0.0, 0.0])
@@ -60,29 +59,23 @@ def test_the_evidence_is_the_mean_likelihood_of_the_reading(world):
     assert surprised.log_evidence < np.log(1e-3) and not surprised.rejected
 
 
-def test_the_prior_fallback_brings_a_lost_belief_back(world):
-    """Particles 20 cm beyond the object, which the hand reaches and pushes: every contact
-    reading surprises them; after ``patience`` of them the fallback injects prior
-    particles that explain the reading, and the belief's error falls."""
-    rng = np.random.default_rng(4)
-    truth = np.array([[0.16, 0.0, 0.0]])
-    prior = world.sample_gaussian(truth[0], np.array([0.01, 0.03, 0.3]), 300, rng=rng)
-    lost = _belief(world, [0.36, 0.0, 0.0], n=300)
-    fallback = PriorFallback(make_filter("cpf", world), world, prior, patience=2,
-                             fraction=0.3)
-    plain = make_filter("cpf", world)
-    belief, plain_belief = lost, lost
-    injected = []
-    for _ in range(12):
-        truth = world.sample_step(truth, AHEAD, rng=rng)
-        reading = world.sensing.true_contacts(truth)[0]
-        belief, diag = fallback.update(belief, AHEAD, reading, rng=rng)
-        plain_belief, _ = plain.update(plain_belief, AHEAD, reading, rng=rng)
-        injected.append(diag.reinvigorated)
-    assert reading.any() and max(injected) > 0 and fallback.injections >= 1
-    assert belief.rmse(truth[0])[0] < 0.03 < plain_belief.rmse(truth[0])[0]
+def test_the_outlier_gate_passes_over_a_reading_no_state_explains(world):
+    """Every sensor lit while the object is 20 cm ahead: the gated CPF propagates without
+    weighing and says so; the MPF's duals explain a plausible contact reading the
+    particles do not, so the gate leaves that one to them."""
+    belief = _belief(world, [0.2, 0.0, 0.0])
+    gated = make_filter("cpf", world, outlier_log_evidence=-30.0)
+    out, diag = gated.update(belief, AHEAD, np.ones(6, bool), rng=np.random.default_rng(5))
+    assert diag.rejected == "outlier" and diag.log_evidence < -30.0
+    assert np.ptp(out.log_weights) == 0 and not np.allclose(out.states, belief.states)
+    mpf = make_filter("mpf", world, AnalyticManifold(world, dtheta_rad=np.deg2rad(5)),
+                      outlier_log_evidence=-20.0)
+    reading = world.sensing.true_contacts(np.array([[0.14, 0.0, 0.0]]))[0]
+    assert reading.sum() >= 2  # plausible, but 5 cm from every particle
+    _, diag = mpf.update(belief, AHEAD, reading, rng=np.random.default_rng(6))
+    assert diag.log_evidence < -20.0 and not diag.rejected and diag.dual_used
 
 
-def test_bad_fallback_settings_are_refused(world):
-    with pytest.raises(ValueError, match="patience"):
-        PriorFallback(make_filter("cpf", world), world, np.zeros((3, 3)), patience=0)
+def test_a_gate_must_be_a_negative_log_evidence(world):
+    with pytest.raises(ValueError, match="outlier_log_evidence"):
+        make_filter("cpf", world, outlier_log_evidence=0.5)
