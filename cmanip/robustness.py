@@ -61,8 +61,8 @@ def _faults(trials: int, seed: int, progress: bool) -> dict:
         done, total = by.get(key, (0, 0))
         by[key] = (done + o["recovered"], total + 1)
     for (estimator, robust), (done, total) in by.items():
-        print(f"  {estimator:16s} {'robust' if robust else 'thesis':6s}: {done}/{total} "
-              f"recovered")
+        variant = "" if estimator == "smoother" else "gated" if robust else "thesis"
+        print(f"  {estimator:16s} {variant:6s}: {done}/{total} recovered")
     return faults
 
 
