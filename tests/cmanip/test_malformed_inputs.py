@@ -41,3 +41,10 @@ def test_mutations_cover_fields_and_lines_and_classify_can_fail(tmp_path):
 def test_a_limit_below_one_is_a_clear_error(capsys):
     assert main(["bench", "robustness", "--limit-per-kind", "0"]) == 2
     assert "--limit-per-kind must be >= 1" in capsys.readouterr().err
+
+
+def test_bad_robustness_options_are_clear_errors(capsys):
+    assert main(["bench", "robustness", "--parts", "faults", "--fault-trials", "0"]) == 2
+    assert "--fault-trials must be >= 1" in capsys.readouterr().err
+    assert main(["bench", "robustness", "--parts", "budgets", "--budget-s", "0"]) == 2
+    assert "--budget-s must be > 0" in capsys.readouterr().err
