@@ -7,7 +7,7 @@ pure cores of :mod:`estimation` and :mod:`models.arms`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -64,13 +64,16 @@ class EstimatorState:
 
     Attributes:
         belief: the particles, or None before the first update.
-        commanded: (dof,) the commanded configuration at the last update (rad).
+        commanded: (dof,) the last finite commanded configuration (rad).
         contact_updates: updates so far with a contact reading.
+        rejected_updates: updates whose encoders (before the first), commanded
+            configuration or readings held a NaN or infinity.
     """
 
     belief: ParticleBelief | None
     commanded: np.ndarray
     contact_updates: int = 0
+    rejected_updates: int = 0
 
 
 class ConfigurationEstimator(LeafSystem):
@@ -78,7 +81,10 @@ class ConfigurationEstimator(LeafSystem):
 
     The first update draws the initial belief from the encoders (``o_q - dq - eps``); each
     later one applies the commanded motion since the last update and the contact readings
-    (:mod:`models.arms.world`).
+    (:mod:`models.arms.world`). A non-finite input is counted and left out: non-finite
+    encoders put off the start, a non-finite command holds the belief until a finite one
+    (whose motion is then taken from the last finite command, so none is lost), and
+    non-finite readings reach the filter as such, which propagates without weighting.
 
     Input ports:
         encoders: (dof,) proprioception (rad).
@@ -124,17 +130,26 @@ class ConfigurationEstimator(LeafSystem):
         commanded = np.array(self._commanded.Eval(context))
         step = int(round(context.get_time() / self._period))
         rng = np.random.default_rng([self._seed, step])
+        encoders = np.array(self._encoders.Eval(context))
+        raw = np.array(self._contact.Eval(context))
         if current.belief is None:
-            states = self._world.initial_belief_states(self._encoders.Eval(context),
-                                                       self._particles, rng=rng)
-            new = EstimatorState(ParticleBelief.uniform(states, self._world.angular),
-                                 commanded)
+            if not (np.isfinite(encoders).all() and np.isfinite(commanded).all()):
+                new = replace(current, rejected_updates=current.rejected_updates + 1)
+            else:
+                states = self._world.initial_belief_states(encoders, self._particles,
+                                                           rng=rng)
+                new = EstimatorState(ParticleBelief.uniform(states, self._world.angular),
+                                     commanded, 0, current.rejected_updates)
+        elif not np.isfinite(commanded).all():
+            new = replace(current, rejected_updates=current.rejected_updates + 1)
         else:
-            readings = self._contact.Eval(context) > 0.5
+            finite = np.isfinite(raw).all()
+            readings = raw > 0.5 if finite else raw  # NaN readings: the filter leaves them
             belief, _ = self._filter.update(current.belief, commanded - current.commanded,
                                             readings, rng=rng)
             new = EstimatorState(belief, commanded,
-                                 current.contact_updates + int(readings.any()))
+                                 current.contact_updates + int(finite and readings.any()),
+                                 current.rejected_updates + int(not finite))
         state.get_mutable_abstract_state(0).set_value(new)
         return EventStatus.Succeeded()
 

@@ -74,12 +74,15 @@ class HandEstimator(LeafSystem):
         palm = self._palm.Eval(context)
         tracker = self.tracker(context)
         if tracker is None:
+            if not np.isfinite(palm).all():  # start at the first finite palm pose
+                return EventStatus.DidNothing()
             tracker = HandRelativeTracker(self._initial, palm)
         else:
             moved = float(np.linalg.norm(palm[:2] - tracker.hand_pose_W[:2]))
             if self._travel is not None and moved < self._travel:
                 return EventStatus.DidNothing()
-            reading = self._readings.Eval(context) > 0.5
+            raw = np.array(self._readings.Eval(context))  # a NaN reaches the filter as such
+            reading = raw > 0.5 if np.isfinite(raw).all() else raw
             tracker = tracker.update(self._filter, palm, reading,
                                      rng=np.random.default_rng([self._seed, tracker.updates]))
         state.get_mutable_abstract_state(int(self._state)).set_value(EstimatorState(tracker))

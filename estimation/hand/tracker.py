@@ -10,7 +10,7 @@ been seen, which is what a pre-/post-contact controller switches on (thesis sec.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -58,12 +58,21 @@ class HandRelativeTracker:
                rng: np.random.Generator) -> HandRelativeTracker:
         """The tracker after the palm moved to ``hand_pose_W`` and took the (S,) boolean
         ``reading`` there: the belief moved by the palm's motion since this value's pose
-        and weighed by the reading, through ``filter`` (the CPF or the MPF)."""
+        and weighed by the reading, through ``filter`` (the CPF or the MPF). A palm pose
+        with a NaN or infinity leaves the tracker as it was (its diagnostics say
+        ``rejected="action"``), so the next finite pose moves the belief the whole way; a
+        reading with one reaches the filter as it is (propagated, not weighed)."""
         hand_pose_W = np.asarray(hand_pose_W, dtype=float)
+        if not np.isfinite(hand_pose_W).all():
+            return replace(self, updates=self.updates + 1,
+                           last_diagnostics=UpdateDiagnostics(False, rejected="action"))
         action = compose(inverse(self.hand_pose_W), hand_pose_W)
-        reading = np.asarray(reading, dtype=bool)
+        raw = np.asarray(reading)
+        finite = raw.dtype.kind not in "fc" or np.isfinite(raw).all()
+        reading = np.asarray(raw, dtype=bool) if finite else raw.astype(float)
         belief, diagnostics = filter.update(self.belief, action, reading, rng=rng)
-        return HandRelativeTracker(belief, hand_pose_W, self.contact_seen or bool(reading.any()),
+        return HandRelativeTracker(belief, hand_pose_W,
+                                   self.contact_seen or bool(finite and reading.any()),
                                    self.updates + 1, diagnostics)
 
     def world_poses(self) -> np.ndarray:

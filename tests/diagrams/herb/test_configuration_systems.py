@@ -78,3 +78,37 @@ def test_herb_episode_writes_its_outputs(tmp_path):
     saved = json.loads((tmp_path / "summary.json").read_text())
     assert saved["figures"] == ["joint_error.png"]
     assert (tmp_path / "replay.html").stat().st_size > 100_000
+
+
+def test_estimator_counts_and_leaves_out_non_finite_inputs():
+    """NaN encoders put the start off; a NaN command holds the belief and the next finite
+    one moves it the whole way; NaN readings are not weighed. Each is counted; no
+    particle is ever NaN."""
+    world = two_link()
+    estimator = ConfigurationEstimator(world, make_filter("cpf", world), particles=100,
+                                       seed=0, period_s=0.1)
+    context = estimator.CreateDefaultContext()
+    start = np.array(world.spec.start_rad)
+    estimator.GetInputPort("encoders").FixValue(context, np.full(2, np.nan))
+    estimator.GetInputPort("commanded").FixValue(context, start)
+    estimator.GetInputPort("contact").FixValue(context, [0.0])
+    simulator = Simulator(estimator, context)
+    simulator.AdvanceTo(0.05)
+    state = simulator.get_context().get_abstract_state(0).get_value()
+    assert state.belief is None and state.rejected_updates == 1
+    estimator.GetInputPort("encoders").FixValue(simulator.get_context(), start)
+    simulator.AdvanceTo(0.15)
+    first = simulator.get_context().get_abstract_state(0).get_value().belief
+    assert first is not None
+    estimator.GetInputPort("commanded").FixValue(simulator.get_context(), np.full(2, np.nan))
+    simulator.AdvanceTo(0.25)
+    held = simulator.get_context().get_abstract_state(0).get_value()
+    assert held.belief is first and held.rejected_updates == 2
+    estimator.GetInputPort("commanded").FixValue(simulator.get_context(), start + [0.2, 0])
+    estimator.GetInputPort("contact").FixValue(simulator.get_context(), [np.nan])
+    simulator.AdvanceTo(0.35)
+    moved = simulator.get_context().get_abstract_state(0).get_value()
+    assert moved.rejected_updates == 3 and moved.contact_updates == 0
+    shift = wrap_angle(np.asarray(moved.belief.states) - np.asarray(first.states))
+    assert np.isfinite(shift).all()
+    assert np.allclose(np.median(shift, axis=0), [0.2, 0.0], atol=0.02)  # not resampled

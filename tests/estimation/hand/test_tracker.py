@@ -44,3 +44,29 @@ def test_a_contact_reading_is_remembered():
     tracker = tracker.update(cpf, hand, np.array([False, False]), rng=np.random.default_rng(3))
     assert tracker.contact_seen and tracker.updates == 2
     assert tracker.last_diagnostics is not None and not tracker.last_diagnostics.contact_observed
+
+
+def test_a_non_finite_palm_pose_or_reading_is_left_out():
+    """A NaN palm pose leaves the tracker where it was (the next finite pose moves it the
+    whole way); a NaN reading is propagated through, not weighed."""
+    import numpy as np
+
+    from estimation.hand.tracker import HandRelativeTracker
+    from estimation.particles.belief import ParticleBelief
+    from estimation.particles.factory import make_filter
+    from models.planar.world import PlanarWorld
+
+    world = PlanarWorld.load("box", "medium")
+    belief = ParticleBelief.uniform(world.sample_gaussian(
+        np.array([0.3, 0.0, 0.0]), np.array([0.01, 0.01, 0.1]), 50,
+        rng=np.random.default_rng(0)))
+    tracker = HandRelativeTracker(belief, np.zeros(3))
+    cpf = make_filter("cpf", world)
+    held = tracker.update(cpf, np.array([np.nan, 0, 0]), np.zeros(6, bool),
+                          rng=np.random.default_rng(1))
+    assert held.belief is belief and held.last_diagnostics.rejected == "action"
+    moved = held.update(cpf, np.array([0.02, 0, 0]), np.full(6, np.nan),
+                        rng=np.random.default_rng(2))
+    assert moved.last_diagnostics.rejected == "observation" and not moved.contact_seen
+    assert np.isfinite(moved.belief.states).all()
+    assert np.median(moved.belief.states[:, 0]) < 0.29  # moved by 2 cm of palm travel
