@@ -158,3 +158,29 @@ def test_a_lat_despot_episode_runs_the_lattice_edges_it_planned(small_hand_solut
     np.testing.assert_allclose((palm[-1] - palm[0])[:2], commanded[:2], atol=2e-3)
     assert meshcat.HasPath("/lattice/feasible/0") and meshcat.HasPath("/lattice/chosen/0")
     assert list((tmp_path / "lattice").glob("*.npz"))  # the IK table was cached
+
+
+def test_the_true_object_never_starts_inside_the_clutter():
+    """cul_de_sac's clutter lies where the thesis' beliefs put some objects: the start is
+    drawn again until it is free, and a belief entirely in the clutter is a clear error."""
+    import numpy as np
+    import pytest
+
+    from diagrams.herb.episode import free_start
+    from models.herb.scene import SceneSpec
+    from models.planar.world import PlanarWorld
+    from planning.lattice.contact import UnmodelledContact
+
+    scene = SceneSpec.load("cul_de_sac", object_override="bottle")
+    world = PlanarWorld.load("bottle", sensors="fingertips")
+    contact = UnmodelledContact(scene)
+    palm = scene.hand_start.as_array()[None]
+    mean, std = np.array([0.35, 0.0, 0.0]), np.array([0.05, 0.05, 0.26])
+    draws = world.sample_gaussian(mean, std, 400, rng=np.random.default_rng(0))
+    assert contact.touches(np.repeat(palm, 400, axis=0), draws).any()  # some would
+    rng = np.random.default_rng(1)
+    starts = np.array([free_start(world, scene, mean, std, rng=rng) for _ in range(40)])
+    assert not contact.touches(np.repeat(palm, 40, axis=0), starts).any()
+    with pytest.raises(ValueError, match="clutter"):
+        free_start(world, scene, np.array([0.0, 5.0, 0.0]), np.full(3, 1e-4),
+                   rng=np.random.default_rng(2))
