@@ -123,7 +123,8 @@ class Solved:
     corner: np.ndarray
 
     def save(self, path: Path) -> None:
-        """Write both as ``.npz``."""
+        """Write both as ``.npz`` (the policy's arrays under the names
+        :meth:`AlphaVectorPolicy.load` reads, and ``corner``)."""
         np.savez_compressed(path, alphas=self.sarsop.alphas,
                             alpha_actions=self.sarsop.alpha_actions,
                             action_names=np.array(self.sarsop.action_names),
@@ -131,10 +132,7 @@ class Solved:
 
     @staticmethod
     def load(path: Path) -> Solved:
-        data = np.load(path)
-        return Solved(AlphaVectorPolicy(data["alphas"], data["alpha_actions"],
-                                        tuple(str(n) for n in data["action_names"])),
-                      data["corner"])
+        return Solved(AlphaVectorPolicy.load(path), np.load(path)["corner"])
 
 
 @dataclass(frozen=True)
@@ -298,7 +296,10 @@ class _Worker:
 
 
 @lru_cache(maxsize=2)
-def _worker(rel: RelSettings, scenes: SceneSettings, solved_path: str) -> _Worker:
+def _worker(rel: RelSettings, scenes: SceneSettings, solved_path: str,
+            version: int) -> _Worker:
+    """A process's worker for the solved policy in ``solved_path`` as of ``version`` (its
+    modification time: a study solved again in the same process is not served the old)."""
     return _Worker(rel, scenes, Solved.load(Path(solved_path)))
 
 
@@ -307,7 +308,7 @@ def scene_episode(rel: RelSettings, scenes: SceneSettings, solved_path: str,
     """Episode ``job`` = (scene, policy, model, j), in whichever process the trial runner
     chose: the problem built and the solved policy loaded from ``solved_path`` once per
     process, each scene when first asked."""
-    return _worker(rel, scenes, solved_path).run(job)
+    return _worker(rel, scenes, solved_path, Path(solved_path).stat().st_mtime_ns).run(job)
 
 
 def trial_store(rel: RelSettings, scenes: SceneSettings, out: Path, *,

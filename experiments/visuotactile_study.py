@@ -94,8 +94,10 @@ def simulated_log_file(settings: VisuotactileSettings, object_name: str, surface
                        trial: int, logs: str, training: bool = False) -> str:
     """The path of one trial's log, simulated first unless already there (a trial of the
     trial runner: the logs directory is the study's store)."""
-    simulated_log(settings, object_name, surface, trial, Path(logs), training=training)
-    return str(log_path(settings, object_name, surface, trial, Path(logs), training=training))
+    path = log_path(settings, object_name, surface, trial, Path(logs), training=training)
+    if not path.is_file():
+        simulated_log(settings, object_name, surface, trial, Path(logs), training=training)
+    return str(path)
 
 
 def simulated_logs(settings: VisuotactileSettings, object_name: str, surface: str,

@@ -17,6 +17,7 @@ from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
 from estimation.configuration.belief import configuration_belief
 from estimation.particles.belief import ParticleBelief
+from estimation.particles.filters import binary_reading
 from models.arms.world import ArmWorld, ball_points
 
 ENCODER_STREAM = 2
@@ -131,20 +132,17 @@ class ConfigurationEstimator(LeafSystem):
         step = int(round(context.get_time() / self._period))
         rng = np.random.default_rng([self._seed, step])
         encoders = np.array(self._encoders.Eval(context))
-        raw = np.array(self._contact.Eval(context))
-        if current.belief is None:
-            if not (np.isfinite(encoders).all() and np.isfinite(commanded).all()):
-                new = replace(current, rejected_updates=current.rejected_updates + 1)
-            else:
-                states = self._world.initial_belief_states(encoders, self._particles,
-                                                           rng=rng)
-                new = EstimatorState(ParticleBelief.uniform(states, self._world.angular),
-                                     commanded, 0, current.rejected_updates)
-        elif not np.isfinite(commanded).all():
+        usable = np.isfinite(commanded).all() and (current.belief is not None
+                                                   or np.isfinite(encoders).all())
+        if not usable:
             new = replace(current, rejected_updates=current.rejected_updates + 1)
+        elif current.belief is None:
+            states = self._world.initial_belief_states(encoders, self._particles, rng=rng)
+            new = EstimatorState(ParticleBelief.uniform(states, self._world.angular),
+                                 commanded, 0, current.rejected_updates)
         else:
-            finite = np.isfinite(raw).all()
-            readings = raw > 0.5 if finite else raw  # NaN readings: the filter leaves them
+            readings = binary_reading(self._contact.Eval(context))
+            finite = readings.dtype == bool  # NaN readings: the filter leaves them out
             belief, _ = self._filter.update(current.belief, commanded - current.commanded,
                                             readings, rng=rng)
             new = EstimatorState(belief, commanded,

@@ -34,6 +34,7 @@ from estimation.particles.belief import ParticleBelief
 from models.herb.scene import PlanarPose, SceneSpec
 from models.herb.tactile import TactileLayout
 from models.objects import ObjectSpec
+from models.planar.world import PlanarWorld
 from models.se2 import compose, inverse
 from planning.hand.model import HandPOMDP, goal_region
 from planning.hand.solution import HandSolution
@@ -129,7 +130,7 @@ MAX_START_DRAWS = 1000
 clutter."""
 
 
-def free_start(world, scene: SceneSpec, mean: np.ndarray, std: np.ndarray, *,
+def free_start(world: PlanarWorld, scene: SceneSpec, mean: np.ndarray, std: np.ndarray, *,
                rng: np.random.Generator) -> np.ndarray:
     """(3,) the true hand-frame object pose: drawn from the belief N(mean, std), again
     while it would start inside an obstacle or off the table (an object does not start

@@ -11,6 +11,7 @@ from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
 from estimation.hand.tracker import HandRelativeTracker, ParticleFilter
 from estimation.particles.belief import ParticleBelief
+from estimation.particles.filters import binary_reading
 
 
 @dataclass(frozen=True)
@@ -81,8 +82,7 @@ class HandEstimator(LeafSystem):
             moved = float(np.linalg.norm(palm[:2] - tracker.hand_pose_W[:2]))
             if self._travel is not None and moved < self._travel:
                 return EventStatus.DidNothing()
-            raw = np.array(self._readings.Eval(context))  # a NaN reaches the filter as such
-            reading = raw > 0.5 if np.isfinite(raw).all() else raw
+            reading = binary_reading(self._readings.Eval(context))
             tracker = tracker.update(self._filter, palm, reading,
                                      rng=np.random.default_rng([self._seed, tracker.updates]))
         state.get_mutable_abstract_state(int(self._state)).set_value(EstimatorState(tracker))

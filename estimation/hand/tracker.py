@@ -16,7 +16,7 @@ from typing import Protocol
 import numpy as np
 
 from estimation.particles.belief import ParticleBelief
-from estimation.particles.filters import UpdateDiagnostics
+from estimation.particles.filters import UpdateDiagnostics, binary_reading
 from models.se2 import compose, inverse
 
 
@@ -67,9 +67,8 @@ class HandRelativeTracker:
             return replace(self, updates=self.updates + 1,
                            last_diagnostics=UpdateDiagnostics(False, rejected="action"))
         action = compose(inverse(self.hand_pose_W), hand_pose_W)
-        raw = np.asarray(reading)
-        finite = raw.dtype.kind not in "fc" or np.isfinite(raw).all()
-        reading = np.asarray(raw, dtype=bool) if finite else raw.astype(float)
+        reading = binary_reading(reading)
+        finite = reading.dtype == bool
         belief, diagnostics = filter.update(self.belief, action, reading, rng=rng)
         return HandRelativeTracker(belief, hand_pose_W,
                                    self.contact_seen or bool(finite and reading.any()),

@@ -88,21 +88,41 @@ def non_finite_input(action: np.ndarray, observation: np.ndarray) -> str:
     return ""
 
 
+def binary_reading(values: np.ndarray) -> np.ndarray:
+    """(S,) contact readings from sensor values (> 0.5 is contact) as booleans, or, when
+    any value is NaN or infinite, the values themselves as floats, which the filters
+    recognise and leave out (a threshold would read NaN as "no contact")."""
+    values = np.asarray(values)
+    if values.dtype.kind in "fc" and not np.all(np.isfinite(values)):
+        return values.astype(float)
+    return values > 0.5
+
+
 def _unweighted(belief: ParticleBelief, predicted: np.ndarray, rejected: str,
                 log_evidence: float = 0.0) -> tuple[ParticleBelief, UpdateDiagnostics]:
-    """The update when an input was rejected: the belief as it was (no action) or its
-    prediction with the prior weights (no usable reading)."""
-    if rejected == "action":
-        return belief, UpdateDiagnostics(False, rejected=rejected)
+    """The update when the reading was not used: the prediction with the prior weights."""
     return (ParticleBelief(predicted, np.array(belief.log_weights), belief.angular),
             UpdateDiagnostics(False, log_evidence=log_evidence, rejected=rejected))
+
+
+def _predict(world: FilterModel, belief: ParticleBelief, action: np.ndarray,
+             observation: np.ndarray, rng: np.random.Generator):
+    """The predicted particles (N, d), or, when an input is not finite, the update's
+    result instead: the belief as it was (the action) or its unweighted prediction (the
+    reading). Returns ``(predicted, None)`` or ``(None, result)``."""
+    rejected = non_finite_input(action, observation)
+    if rejected == "action":
+        return None, (belief, UpdateDiagnostics(False, rejected=rejected))
+    predicted = world.sample_step(np.array(belief.states), action, rng=rng)
+    if rejected:
+        return None, _unweighted(belief, predicted, rejected)
+    return predicted, None
 
 
 def _check_gate(outlier_log_evidence: float | None) -> None:
     if outlier_log_evidence is not None and not outlier_log_evidence < 0:
         raise ValueError(f"outlier_log_evidence must be < 0 or None, got "
                          f"{outlier_log_evidence}")
-
 
 
 def _log_evidence(belief: ParticleBelief, log_w: np.ndarray) -> float:
@@ -141,12 +161,9 @@ class ConventionalParticleFilter:
 
     def update(self, belief: ParticleBelief, action: np.ndarray, observation: np.ndarray, *,
                rng: np.random.Generator) -> tuple[ParticleBelief, UpdateDiagnostics]:
-        rejected = non_finite_input(action, observation)
-        if rejected == "action":
-            return _unweighted(belief, np.asarray(belief.states), rejected)
-        predicted = self.world.sample_step(np.array(belief.states), action, rng=rng)
-        if rejected:
-            return _unweighted(belief, predicted, rejected)
+        predicted, rejected = _predict(self.world, belief, action, observation, rng)
+        if rejected is not None:
+            return rejected
         log_w = belief.log_weights + self.world.log_likelihood(observation, predicted, action)
         evidence = _log_evidence(belief, log_w)
         gate = self.outlier_log_evidence
@@ -218,12 +235,9 @@ class ManifoldParticleFilter:
     def update(self, belief: ParticleBelief, action: np.ndarray, observation: np.ndarray, *,
                rng: np.random.Generator) -> tuple[ParticleBelief, UpdateDiagnostics]:
         phi = self.mixing_rate
-        rejected = non_finite_input(action, observation)
-        if rejected == "action":
-            return _unweighted(belief, np.asarray(belief.states), rejected)
-        predicted = self.world.sample_step(np.array(belief.states), action, rng=rng)
-        if rejected:
-            return _unweighted(belief, predicted, rejected)
+        predicted, rejected = _predict(self.world, belief, action, observation, rng)
+        if rejected is not None:
+            return rejected
         observation = np.asarray(observation, dtype=bool)
         prior_w = belief.weights
         cpf_ll = self.world.log_likelihood(observation, predicted, action)

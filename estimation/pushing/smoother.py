@@ -286,8 +286,8 @@ class VisuoTactileSmoother:
         forces = np.asarray(forces, dtype=float)
         contact = np.array(contact, dtype=bool)
         finite = np.isfinite(rods).all(axis=1) & np.isfinite(forces).all(axis=1)
-        bad = ~finite | (contact & (np.abs(np.where(finite[:, None], forces, 1.0))
-                                    .sum(axis=1) < MIN_CONTACT_FORCE_N))
+        # a NaN force compares False, so only the finite ones can read as forceless
+        bad = ~finite | (contact & (np.abs(forces).sum(axis=1) < MIN_CONTACT_FORCE_N))
         if bad.any():
             self.rejected_inputs += int(bad.sum())
             contact &= ~bad
