@@ -207,16 +207,6 @@ class SceneEpisodes:
                                                      np.arange(len(initial)))
         self.initial = initial * free / float(np.sum(initial * free))
 
-    def sample_start(self, rng: np.random.Generator) -> np.ndarray:
-        """(1, 3) a hand-frame object pose from the initial belief that touches no
-        obstacle at the start (rejection sampling, 64 at a time)."""
-        palm = np.tile(self.lattice.poses[self.lattice.start_point], (64, 1))
-        while True:
-            poses = self.belief.sample(self.model.world, 64, rng=rng)
-            free = np.flatnonzero(~self.contact.touches(palm, poses))
-            if len(free):
-                return poses[free[:1]]
-
     def decide(self, policy: str, point: int, belief: np.ndarray,
                rng: np.random.Generator) -> tuple[int, float]:
         """(action, planning ms) of ``policy`` at lattice point ``point``, discrete belief
@@ -239,7 +229,9 @@ class SceneEpisodes:
         lat, model, horizon = self.models[kind], self.model, self.rel.horizon
         gamma = lat.discount
         if kind == "continuous":
-            state = lat.from_poses(self.lattice.start_point, self.sample_start(rng))
+            start = self.contact.free_start(
+                lambda n: self.belief.sample(self.model.world, n, rng=rng), batch=64)
+            state = lat.from_poses(self.lattice.start_point, start[None])
         else:
             cell = rng.choice(len(self.initial), p=self.initial)
             state = lat.with_point(self.lattice.start_point, np.array([[cell]]))
@@ -372,8 +364,10 @@ def run_scenes(rel: RelSettings, scenes: SceneSettings, solved_path: Path, out: 
     writes ``lattice_<scene>.npz`` (the edges Lat-DESPOT's first continuous episode asked
     for) for the lattice figure."""
     policies = scenes.policies
-    jobs = [(scene, policy, kind, j) for scene in scenes.scenes for policy in policies
-            for kind in MODELS for j in range(rel.trials)]
+    # trial index outermost: a study stopped part-way has its first trials of every scene
+    # and policy (summarised by ``--trials N --resume`` with N of them done)
+    jobs = [(scene, policy, kind, j) for j in range(rel.trials) for scene in scenes.scenes
+            for policy in policies for kind in MODELS]
     results = map_trials(scene_episode,
                          [Job("/".join(map(str, job)), (rel, scenes, str(solved_path), job))
                           for job in jobs],

@@ -34,7 +34,6 @@ from estimation.particles.belief import ParticleBelief
 from models.herb.scene import PlanarPose, SceneSpec
 from models.herb.tactile import TactileLayout
 from models.objects import ObjectSpec
-from models.planar.world import PlanarWorld
 from models.se2 import compose, inverse
 from planning.hand.model import HandPOMDP, goal_region
 from planning.hand.solution import HandSolution
@@ -125,32 +124,6 @@ class EpisodeWatch:
         return idle and executor.motion(context).decision >= last_sent
 
 
-MAX_START_DRAWS = 1000
-"""Draws of the true object pose before an episode gives up on a belief that lies in the
-clutter."""
-
-
-def free_start(world: PlanarWorld, scene: SceneSpec, mean: np.ndarray, std: np.ndarray, *,
-               rng: np.random.Generator) -> np.ndarray:
-    """(3,) the true hand-frame object pose: drawn from the belief N(mean, std), again
-    while it would start inside an obstacle or off the table (an object does not start
-    inside the clutter; placed there, the physics throws it out, often toppled, before the
-    first decision). One draw at a time, so a scene whose first draw is free consumes the
-    random numbers it always did.
-
-    Raises:
-        ValueError: no free pose in :data:`MAX_START_DRAWS` draws.
-    """
-    contact = UnmodelledContact(scene)
-    palm = scene.hand_start.as_array()[None]
-    for _ in range(MAX_START_DRAWS):
-        pose = world.sample_gaussian(mean, std, 1, rng=rng)
-        if not contact.touches(palm, pose)[0]:
-            return pose[0]
-    raise ValueError(f"the belief N({mean.tolist()}, {std.tolist()}) lies in the clutter of "
-                     f"scene {scene.name!r}: no free start in {MAX_START_DRAWS} draws")
-
-
 def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
                 meshcat: Meshcat | None = None, progress: bool = True,
                 filter: ParticleFilter | None = None,
@@ -180,7 +153,8 @@ def run_episode(settings: EpisodeSettings, solution: HandSolution, *,
     mean, std = np.array(settings.belief_mean), np.array(settings.belief_std)
     scene = SceneSpec.load(settings.scene, object_override=settings.object_name)
     start = scene.hand_start.as_array()
-    true_rel = free_start(world, scene, mean, std, rng=rng)
+    true_rel = UnmodelledContact(scene).free_start(
+        lambda n: world.sample_gaussian(mean, std, n, rng=rng))
     initial = ParticleBelief.uniform(world.sample_gaussian(mean, std, settings.particles,
                                                            rng=rng))
     layout = TactileLayout.load(settings.layout)

@@ -15,6 +15,8 @@ object or a lower palm would need the arm's footprint here.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from models.herb.scene import SceneSpec
@@ -23,6 +25,8 @@ from models.se2 import compose
 
 #: Signed distance (m) below which the object counts as touching an obstacle.
 CONTACT_DISTANCE_M = 0.0
+#: How many poses :meth:`UnmodelledContact.free_start` draws before it gives up.
+MAX_START_DRAWS = 1000
 
 
 class UnmodelledContact:
@@ -58,3 +62,23 @@ class UnmodelledContact:
             hit = hit | (distances.min(axis=1) < CONTACT_DISTANCE_M)
         out[known] = hit
         return out
+
+    def free_start(self, draw: Callable[[int], np.ndarray], *, batch: int = 1) -> np.ndarray:
+        """(3,) the first of the hand-frame object poses that ``draw(batch) -> (batch, 3)``
+        returns which touches nothing with the palm at the scene's start: an object does
+        not start inside the clutter (placed there, the physics throws it out, often
+        toppled). Poses are drawn ``batch`` at a time, so a caller keeps the random
+        numbers it consumed before (the closed-loop episodes draw 1, the Lat-POMDP
+        study 64).
+
+        Raises:
+            ValueError: no free pose in :data:`MAX_START_DRAWS` draws.
+        """
+        palm = np.tile(self.scene.hand_start.as_array(), (batch, 1))
+        for _ in range(0, MAX_START_DRAWS, batch):
+            poses = draw(batch)
+            free = np.flatnonzero(~self.touches(palm, poses))
+            if len(free):
+                return poses[free[0]]
+        raise ValueError(f"no pose free of the clutter of scene {self.scene.name!r} in "
+                         f"{MAX_START_DRAWS} draws from the belief")

@@ -47,13 +47,11 @@ import numpy as np
 from planning.hand.generative import ContinuousHandGenerative
 from planning.hand.model import HandPOMDP
 from planning.lattice.contact import UnmodelledContact
-from planning.lattice.kernels import lift_rollouts
+from planning.lattice.kernels import BAD, lat_rollout, lat_step, lat_upper, lift_rollouts
 from planning.lattice.lattice import ConfigurationLattice
 from planning.pomdp.generative import GenerativeStep, TabularGenerative, action_array
 from planning.pomdp.point_based import AlphaVectorPolicy
 
-BAD = -1
-"""The lattice point of ``s_bad``."""
 UNKNOWN_CONTACT = -1
 
 
@@ -127,10 +125,12 @@ class LatticePOMDP:
         q = self.tabular.q_values
         self._upper_values = q.max(axis=1) if upper_values is None else np.asarray(
             upper_values, dtype=float)
+        #: (S, N) the lifted policy's vectors as columns, and (N,) their actions
         if rollout_policy is None:
-            self._alphas, self._alpha_actions = np.ascontiguousarray(q.T), np.arange(q.shape[1])
+            self._alphas_t, self._alpha_actions = np.ascontiguousarray(q), np.arange(q.shape[1])
         else:
-            self._alphas = np.ascontiguousarray(rollout_policy.alphas, dtype=float)
+            self._alphas_t = np.ascontiguousarray(np.asarray(rollout_policy.alphas,
+                                                             dtype=float).T)
             self._alpha_actions = np.asarray(rollout_policy.alpha_actions, dtype=np.int64)
         self._cell_poses = cell_poses(model)
         #: (P, S) int8 un-modelled contact of each cell at each point, -1 until asked.
@@ -138,6 +138,8 @@ class LatticePOMDP:
                                 UNKNOWN_CONTACT, dtype=np.int8)
         self._tabular_params = self.tabular.kernels()[1]
         self._terminal = self._tabular_params[5]
+        #: the compiled search's request (point, action; action -1: a contact row)
+        self._request = np.full(2, -1, dtype=np.int64)
 
     # -- the generative model
     def step(self, states: np.ndarray, actions: int | np.ndarray,
@@ -205,7 +207,7 @@ class LatticePOMDP:
     def policy_values(self, cells: np.ndarray) -> np.ndarray:
         """(A,) the lifted policy's action values at the histogram of ``cells`` (n,) (its
         best vector's summed value per action; -inf for an action without one)."""
-        dots = self._alphas[:, cells].sum(axis=1)
+        dots = self._alphas_t[cells].sum(axis=0)
         values = np.full(len(self.actions), -np.inf)
         np.maximum.at(values, self._alpha_actions, dots)
         return values
@@ -241,7 +243,7 @@ class LatticePOMDP:
             lift_rollouts(points, cells, depth, scale, value, alive, offsets,
                           np.asarray(scenarios, dtype=np.int64), uniforms, max_depth,
                           self.discount, self.bad_return, indptr, indices, cumulative, R,
-                          terminal, self._alphas, self._alpha_actions, self.lattice.status,
+                          terminal, self._alphas_t, self._alpha_actions, self.lattice.status,
                           self.lattice.neighbours, self._contact, pending)
             asked = pending[pending[:, 0] >= 0]
             if not len(asked):
@@ -250,6 +252,33 @@ class LatticePOMDP:
             if len(edges):
                 self.lattice.feasible(edges[:, 0], edges[:, 1])
             self._contact_rows(asked[asked[:, 1] < 0, 0])
+
+    # -- the compiled search (planning.pomdp.despot_kernels)
+    def kernels(self):
+        """The compiled DESPOT's kernels (:mod:`planning.lattice.kernels`) and their
+        parameters, for the discrete inner model (None for the continuous one, which has
+        no compiled step: DESPOT then runs its Python engine). The parameters hold the
+        lattice's and the contact table's arrays themselves, so what
+        :meth:`answer_kernel_request` evaluates the kernels see."""
+        if self.continuous:
+            return None
+        return (lat_step, lat_upper, lat_rollout), (
+            self._tabular_params, self.lattice.status, self.lattice.neighbours,
+            self._contact, self._upper_values, self._alphas_t, self._alpha_actions,
+            self.lattice.asked, self._request, self.bad_return)
+
+    def answer_kernel_request(self) -> None:
+        """Evaluate what a compiled kernel asked for: an edge, or a point's contact row."""
+        point, action = (int(v) for v in self._request)
+        if action >= 0:
+            self.lattice.feasible([point], [action])
+        else:
+            self._contact_rows(np.array([point]))
+
+    def warm_up_states(self, n: int) -> np.ndarray:
+        """(n, 2) rows in ``s_bad``: a search from them compiles the kernels and asks the
+        lattice nothing (see :meth:`planning.pomdp.despot.Despot._warm_up`)."""
+        return np.tile([float(BAD), 0.0], (n, 1))
 
     # -- helpers
     def _inner(self, states: np.ndarray) -> np.ndarray:

@@ -34,10 +34,12 @@ is reported.
 
 Two engines run the same search: this module's Python objects (every variant and
 option), and :mod:`planning.pomdp.despot_kernels`' compiled trials on flat arrays, for AR
-without subtree reuse on models that give kernels (Tag, RockSample, tabular models); on
-tabular models the two build identical trees (tested). The tree has no reference cycles,
-and the cyclic garbage collector is paused during a search (its passes over tens of
-thousands of nodes were the budget overruns).
+without subtree reuse on models that give kernels (Tag, RockSample, tabular models, the
+discrete Lat-POMDP); on tabular models and the discrete Lat-POMDP the two build identical
+trees (tested). A model whose kernels read lazily computed data (the Lat-POMDP's lattice)
+has ``answer_kernel_request()``, called when a trial stops to ask for it. The tree has no
+reference cycles, and the cyclic garbage collector is paused during a search (its passes
+over tens of thousands of nodes were the budget overruns).
 
 The budget is wall-clock time, checked before every trial, so a decision overruns by at
 most one trial (reported, with the longest trial). The reference instead counts CPU time
@@ -63,7 +65,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from planning.pomdp.despot_kernels import GROW, ArrayTree, make_core
+from planning.pomdp.despot_kernels import GROW, NEED, ArrayTree, make_core
 from planning.pomdp.generative import GenerativePOMDP, action_array, rollout_kernel
 
 VARIANTS = ("ar", "r")
@@ -136,7 +138,8 @@ def belief_nodes(root):
 
 
 def compiled_core(functions: tuple):
-    """The compiled trial for a model's kernel functions, built once per process."""
+    """The compiled trial and backup for a model's kernel functions, built once per
+    process."""
     if functions not in _CORES:
         _CORES[functions] = make_core(*functions)
     return _CORES[functions]
@@ -245,7 +248,7 @@ class Despot:
         self._workspace: ArrayTree | None = None  # the compiled tree's arrays, reused
         if compilable and settings.engine != "python":
             functions, self._kernel_params = kernels
-            self._core = compiled_core(functions)
+            self._core, self._core_backup = compiled_core(functions)
         self._gamma = model.discount
         self._actions = len(model.actions)
         if self._core is not None:
@@ -332,13 +335,19 @@ class Despot:
 
     def _warm_up(self) -> None:
         """Compile the core now (a few seconds once per process and model), with a
-        one-trial search, rather than inside the first decision's budget."""
+        one-trial search, rather than inside the first decision's budget; from the model's
+        ``warm_up_states(n)`` if it has them (states whose search computes nothing lazily,
+        so that building a planner leaves the model as it was), else from its initial
+        belief."""
         settings = self.settings
         self.settings = replace(settings, scenarios=2, depth=2, max_trials=1,
                                 gap_stop=-np.inf)  # one trial even if the bounds meet
         try:
             rng = np.random.default_rng(0)
-            self._search_compiled(self.model.sample_initial(2, rng=rng), None, rng)
+            warm_up_states = getattr(self.model, "warm_up_states", None)
+            states = (warm_up_states(2) if warm_up_states is not None
+                      else self.model.sample_initial(2, rng=rng))
+            self._search_compiled(states, None, rng)
         finally:
             self.settings = settings
 
@@ -377,6 +386,7 @@ class Despot:
         tree.lower[0], tree.upper[0] = tree.l0[0], tree.u0[0]
         crossings = np.zeros(1, dtype=np.int64)
         path = np.zeros(s.depth + 2, dtype=np.int64)
+        resume = np.zeros(2)  # a stopped trial's path length and root gap
         grow_after = False
 
         def trial() -> int | None:
@@ -384,7 +394,10 @@ class Despot:
             arrays, pool = tree.as_tuples()
             length = self._core(0, arrays, pool, tree.counts, uniforms, self._kernel_params,
                                 self._actions, s.depth, self._gamma, lam, float(s.scenarios),
-                                s.xi, crossings, path)
+                                s.xi, crossings, path, resume)
+            if length == NEED:  # the model computes what its kernels asked for; resume
+                self.model.answer_kernel_request()
+                return -1
             if length != GROW:
                 return int(tree.depth[path[length - 1]])
             # out of room: grow now, or, late in the budget, after the search (copying the
@@ -397,6 +410,9 @@ class Despot:
 
         trials, depth_reached, trial_max = self._run_trials(
             start, trial, lambda: tree.upper[0] - tree.lower[0])
+        if resume[0] > 0:  # the budget ran out in a stopped trial: back up what it expanded
+            self._core_backup(path, int(resume[0]), tree.as_tuples()[0], self._actions,
+                              s.depth, crossings)
         elapsed = time.perf_counter() - start
         self._crossings = int(crossings[0])
         if grow_after:  # for the next decision, outside this one's search budget

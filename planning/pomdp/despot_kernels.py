@@ -24,6 +24,9 @@ import numpy as np
 
 GROW = -1
 """Status of a trial that stopped for want of room (the caller grows the arrays)."""
+NEED = -2
+"""Status of a trial that stopped because a kernel needs data the model computes lazily
+(the caller has the model answer its request and runs the trial again)."""
 
 
 @numba.njit
@@ -58,6 +61,18 @@ def make_core(step, upper, rollout):
         ``rollout(params, states (n, d), scenarios (n,), terminal (n,), depth, uniforms,
         max_depth, discount) -> float``: the sum over one node's scenarios of the default
         policy's discounted returns.
+
+    A model whose kernels read data it computes lazily (the configuration lattice's edges)
+    has ``step`` return a negative observation, or ``rollout`` NaN, when that data is not
+    there yet (what is missing: the model's own business, written into its parameters).
+    The expansion is then undone (the tree's counters and the node's actions restored,
+    nothing reachable changed) and the trial returns :data:`NEED`, leaving in ``resume``
+    where it stopped (its path length and root gap); the caller has the model compute what
+    was asked and calls the trial again, which resumes at that node: the same trial as one
+    that was never stopped (the same tree, whatever the model had computed before).
+
+    Returns ``(trial, backup)``: ``backup`` backs up a path, for a search that ends while a
+    trial is stopped.
     """
 
     @numba.njit
@@ -75,6 +90,7 @@ def make_core(step, upper, rollout):
                 or counts[2] + actions * live >= len(child_node)
                 or counts[3] + actions * live >= len(scen)):
             return GROW
+        saved = counts.copy()  # to undo an expansion a kernel cannot finish
         weight = discount ** depth[b] / k
         rows = np.empty(live, dtype=np.int64)
         j = 0
@@ -93,6 +109,10 @@ def make_core(step, upper, rollout):
             for j in range(live):
                 i = rows[j]
                 r, o, t = step(params, states[i], a, uniforms[scen[i], depth[b]], nxt[j])
+                if o < 0:
+                    counts[:] = saved
+                    first_action[b] = -1
+                    return NEED
                 reward_sum += r
                 obs[j] = o
                 ends[j] = t
@@ -121,6 +141,10 @@ def make_core(step, upper, rollout):
                 w = discount ** depth[c] / k
                 value = rollout(params, states[p0:p0 + h - g], scen[p0:p0 + h - g],
                                 term[p0:p0 + h - g], depth[c], uniforms, max_depth, discount)
+                if value != value:
+                    counts[:] = saved
+                    first_action[b] = -1
+                    return NEED
                 bound = 0.0
                 all_ended = True
                 for m in range(p0, p0 + h - g):
@@ -169,16 +193,24 @@ def make_core(step, upper, rollout):
 
     @numba.njit
     def trial(root, tree, pool, counts, uniforms, params, actions, max_depth, discount, lam,
-              k, xi, crossings, path):  # pragma: no cover (compiled)
+              k, xi, crossings, path, resume):  # pragma: no cover (compiled)
         """One AR-DESPOT trial and its backup; returns the path length (GROW if the
-        arrays ran out of room before an expansion: the path so far is backed up)."""
+        arrays ran out of room before an expansion: the path so far is backed up). NEED
+        if a kernel asked for lazily computed data: nothing backed up, ``resume`` (2,)
+        holds the path's length and the trial's root gap, and the next call resumes the
+        trial at the path's last node (``resume[0]`` 0: a new trial)."""
         (depth, start, count, l0, u0, lower, upper_b, first_action, q_rho, q_lower, q_upper,
          q_child_start, q_child_count, child_node, child_obs) = tree
         term = pool[2]
-        gap = upper_b[root] - lower[root]
-        node = root
-        path[0] = root
-        length = 1
+        if resume[0] > 0:
+            length, gap = int(resume[0]), resume[1]
+            node = path[length - 1]
+            resume[0] = 0.0
+        else:
+            gap = upper_b[root] - lower[root]
+            node = root
+            path[0] = root
+            length = 1
         status = 0
         while depth[node] < max_depth:
             ended = True
@@ -189,9 +221,12 @@ def make_core(step, upper, rollout):
             if ended:
                 break
             if first_action[node] < 0:
-                if expand(node, params, tree, pool, counts, uniforms, actions, max_depth,
-                          discount, lam, k) == GROW:
-                    status = GROW
+                status = expand(node, params, tree, pool, counts, uniforms, actions,
+                                max_depth, discount, lam, k)
+                if status == NEED:
+                    resume[0], resume[1] = length, gap
+                    return NEED
+                if status == GROW:
                     break
             best_q, best_up = -1, -np.inf
             for q in range(first_action[node], first_action[node] + actions):
@@ -213,7 +248,7 @@ def make_core(step, upper, rollout):
         backup(path, length, tree, actions, max_depth, crossings)
         return GROW if status == GROW else length
 
-    return trial
+    return trial, backup
 
 
 class ArrayTree:

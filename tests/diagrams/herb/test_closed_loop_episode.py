@@ -166,7 +166,6 @@ def test_the_true_object_never_starts_inside_the_clutter():
     import numpy as np
     import pytest
 
-    from diagrams.herb.episode import free_start
     from models.herb.scene import SceneSpec
     from models.planar.world import PlanarWorld
     from planning.lattice.contact import UnmodelledContact
@@ -179,8 +178,11 @@ def test_the_true_object_never_starts_inside_the_clutter():
     draws = world.sample_gaussian(mean, std, 400, rng=np.random.default_rng(0))
     assert contact.touches(np.repeat(palm, 400, axis=0), draws).any()  # some would
     rng = np.random.default_rng(1)
-    starts = np.array([free_start(world, scene, mean, std, rng=rng) for _ in range(40)])
+    starts = np.array([contact.free_start(lambda n: world.sample_gaussian(mean, std, n,
+                                                                          rng=rng))
+                       for _ in range(40)])
     assert not contact.touches(np.repeat(palm, 40, axis=0), starts).any()
     with pytest.raises(ValueError, match="clutter"):
-        free_start(world, scene, np.array([0.0, 5.0, 0.0]), np.full(3, 1e-4),
-                   rng=np.random.default_rng(2))
+        far = np.random.default_rng(2)
+        contact.free_start(lambda n: world.sample_gaussian(np.array([0.0, 5.0, 0.0]),
+                                                           np.full(3, 1e-4), n, rng=far))

@@ -88,6 +88,41 @@ def test_the_compiled_rollout_equals_stepping_the_lifted_policy(lat):
     np.testing.assert_allclose(compiled, expected, atol=1e-12)
 
 
+@pytest.mark.parametrize("rollout", ["qmdp", "vectors"])
+def test_the_compiled_lat_despot_is_the_python_search(hand_model, wall, small_table, ahead,
+                                                       rollout):
+    """The compiled engine on the discrete Lat-POMDP (kernels that stop to have the lattice
+    evaluated, then run the trial again) builds the Python engine's tree, and evaluates
+    the same edges, each of them asked for; on fresh lattices, with Lift-QMDP rollouts and
+    with a hand-relative policy's vectors (as Lat-DESPOT-PB's)."""
+    from planning.pomdp.despot import Despot
+
+    q = solve_mdp(hand_model.pomdp)
+    vectors = None if rollout == "qmdp" else qmdp_vectors(q + 0.5 * np.roll(q, 1, axis=1),
+                                                          hand_model.pomdp.actions)
+    rng = np.random.default_rng(6)
+    poses = GaussianBelief((0.16, -0.03, 0.0), (0.005, 0.02, np.pi)).sample(
+        hand_model.world, 300, rng=rng)
+    results = []
+    for engine in ("python", "compiled"):
+        lattice = ConfigurationLattice(wall, small_table, hand_model.spec.action_vectors())
+        model = LatticePOMDP(hand_model, lattice, UnmodelledContact(wall), initial=ahead,
+                             rollout_policy=vectors)
+        assert lattice.stats().edges_evaluated == 0  # building the planner evaluated nothing
+        search = Despot(model, DespotSettings(scenarios=40, depth=30, max_trials=25,
+                                              seconds=60, engine=engine))
+        rows = model.from_poses(lattice.start_point, poses)
+        action, stats, _ = search.search(rows, rng=np.random.default_rng(7))
+        results.append((action, stats, lattice.status.copy(), lattice.asked.copy()))
+    (a, python, status_p, asked_p), (b, compiled, status_c, asked_c) = results
+    assert a == b and python.nodes == compiled.nodes and python.trials == compiled.trials
+    np.testing.assert_allclose(compiled.action_lower, python.action_lower, atol=1e-9)
+    np.testing.assert_allclose(compiled.action_upper, python.action_upper, atol=1e-9)
+    np.testing.assert_array_equal(status_c, status_p)
+    assert (status_c != -1).sum() > 4 and np.all(asked_c[status_c != -1])
+    np.testing.assert_array_equal(asked_c, asked_p)
+
+
 def test_lift_qmdp_replaces_the_infeasible_choice(lat, hand_model):
     q = qmdp_vectors(solve_mdp(hand_model.pomdp), hand_model.pomdp.actions)
     right = GaussianBelief((0.16, -0.05, 0.0), (0.005, 0.005, np.pi))
