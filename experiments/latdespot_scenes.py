@@ -149,7 +149,8 @@ class LatEpisode:
         edges_asked: lattice edges the policy asked for in the episode.
         edges_asked_per_decision: median over its decisions.
         asked: (P, A) bool, the asked edges, and status: (P, A) int8 the lattice's
-            answers at the end (kept for the lattice figure of Lat-DESPOT's episodes).
+            answers at the end (kept for the lattice figure: Lat-DESPOT's first episode on
+            the continuous model).
     """
 
     in_goal: np.ndarray
@@ -223,8 +224,11 @@ class SceneEpisodes:
             result = self.lat[policy].plan(cells, rng=rng, point=point)
         return result.action, result.planning_ms
 
-    def run(self, policy: str, kind: str, seed_key: tuple[int, ...]) -> LatEpisode:
-        """One episode of ``policy`` on the ``kind`` Lat-POMDP (see the module docstring)."""
+    def run(self, policy: str, kind: str, seed_key: tuple[int, ...], *,
+            keep_lattice: bool = False) -> LatEpisode:
+        """One episode of ``policy`` on the ``kind`` Lat-POMDP (see the module docstring);
+        ``keep_lattice``: with the lattice's asked edges and answers (the lattice figure's
+        episode; 33,000 entries, so not every episode's)."""
         rng = np.random.default_rng(seed_key)
         lat, model, horizon = self.models[kind], self.model, self.rel.horizon
         gamma = lat.discount
@@ -257,12 +261,12 @@ class SceneEpisodes:
             belief, _ = belief_update(model.pomdp, belief, action, int(step.observations[0]))
             state = step.next_states
             in_goal[t + 1] = self._in_goal(lat, state)
-        keep = policy == "lat-despot"
-        return LatEpisode(in_goal, total, infeasible, unmodelled, np.array(planning),
+        return LatEpisode(in_goal, total, infeasible, unmodelled,
+                          np.round(planning, 2),  # 0.01 ms: what the summaries read
                           int(self.lattice.asked.sum()),
                           float(np.median(asked)) if asked else 0.0,
-                          self.lattice.asked.copy() if keep else None,
-                          self.lattice.status.copy() if keep else None)
+                          self.lattice.asked.copy() if keep_lattice else None,
+                          self.lattice.status.copy() if keep_lattice else None)
 
     def _in_goal(self, lat: LatticePOMDP, state: np.ndarray) -> bool:
         """The object in the goal (continuous model; the discrete one reports no success)."""
@@ -284,7 +288,8 @@ class _Worker:
                                                 self.model, self.belief, self.initial, scene)
         key = (self.rel.seed, EPISODE_STREAM, self.scenes.scenes.index(scene),
                POLICIES.index(policy), MODELS.index(kind), j)
-        return self._scenes[scene].run(policy, kind, key)
+        figure = policy == "lat-despot" and kind == "continuous" and j == 0
+        return self._scenes[scene].run(policy, kind, key, keep_lattice=figure)
 
 
 @lru_cache(maxsize=2)
