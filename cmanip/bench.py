@@ -13,8 +13,8 @@ from cmanip.robustness import ROBUSTNESS_PARTS
 
 def register(commands) -> None:
     bench = subcommand(commands, "bench", "measurements: plant time step, filters, POMDP "
-                                          "solvers (point-based, DESPOT), visuo-tactile "
-                                          "smoother")
+                                          "solvers (point-based, DESPOT, Lat-DESPOT), "
+                                          "visuo-tactile smoother")
     kinds = bench.add_subparsers(dest="bench", required=True, metavar="BENCH")
     step = subcommand(kinds, "timestep", "accuracy and speed per plant time step")
     step.add_argument("--steps", type=float, nargs="+",
@@ -70,6 +70,18 @@ def register(commands) -> None:
                        help="where the solver's trials stop (HSVI2's rule: the comparison)")
     _json(pomdp)
     pomdp.set_defaults(handler=_pomdp)
+
+    lat = subcommand(kinds, "latdespot", "Lat-DESPOT's decisions on the Python and the "
+                                         "compiled DESPOT engine, side by side")
+    lat.add_argument("--scene", default="cul_de_sac", help="the scene (name or YAML)")
+    lat.add_argument("--decisions", type=int, default=60, help="decisions timed per engine")
+    lat.add_argument("--trials", type=int, default=30, help="DESPOT trials per decision")
+    lat.add_argument("--seed", type=int, default=0, help="seeds the episodes")
+    lat.add_argument("--cache-dir", type=Path, default=Path("out/cache"),
+                     help="where the lattice's IK table is kept")
+    lat.add_argument("--no-progress", action="store_true", help="no progress bars")
+    _json(lat)
+    lat.set_defaults(handler=_latdespot)
 
     despot = subcommand(kinds, "despot", "DESPOT on Tag, RockSample or a .pomdp file, beside "
                                          "the reference C++ DESPOT when it is built")
@@ -166,6 +178,19 @@ def _despot(args: argparse.Namespace) -> int:
                                 steps=args.steps, seed=args.seed, scenarios=args.scenarios,
                                 reference=args.reference, progress=not args.no_progress),
                args.json)
+    return 0
+
+
+def _latdespot(args: argparse.Namespace) -> int:
+    from experiments.latdespot_bench import run_latdespot_bench
+    from models.herb.scene import SceneSpec
+
+    if args.decisions < 1 or args.trials < 1:
+        raise ValueError("--decisions and --trials must be >= 1")
+    SceneSpec.load(args.scene)  # a bad name or file fails before the problem is built
+    write_json(run_latdespot_bench(args.scene, decisions=args.decisions, trials=args.trials,
+                                   seed=args.seed, cache_dir=str(args.cache_dir),
+                                   progress=not args.no_progress), args.json)
     return 0
 
 

@@ -171,21 +171,35 @@ def lattice_spec(scene: SceneSpec, step_m: float, settings: SceneSettings) -> La
                        y_range_m=settings.lattice_y_range_m)
 
 
+def scene_lat_pomdp(scene_name: str, rel: RelSettings, scenes: SceneSettings, *,
+                    model: HandPOMDP | None = None, belief=None,
+                    progress: bool = False) -> LatticePOMDP:
+    """The discrete Lat-POMDP of a scene on the study's problem (``model`` and ``belief``:
+    :func:`~experiments.latdespot_study.build_rel_problem`'s, built here when not given),
+    the lattice's IK table from ``scenes.cache_dir`` (solved into it on first use)."""
+    if model is None:
+        model, belief, _ = build_rel_problem(rel)
+    scene = SceneSpec.load(scene_name, object_override=rel.object_name)
+    spec = lattice_spec(scene, model.spec.step_m, scenes)
+    cache = None if scenes.cache_dir is None else Path(scenes.cache_dir)
+    table = load_ik_table(scene, spec, cache_dir=cache, progress=progress)
+    lattice = ConfigurationLattice(scene, table, model.spec.action_vectors())
+    return LatticePOMDP(model, lattice, UnmodelledContact(scene), inner="discrete",
+                        initial=belief)
+
+
 class SceneEpisodes:
     """One scene's lattice, models and policies (built in each worker)."""
 
     def __init__(self, rel: RelSettings, scenes: SceneSettings, solved: Solved,
                  model: HandPOMDP, belief, initial: np.ndarray, scene_name: str):
         self.rel, self.model, self.belief = rel, model, belief
-        self.scene = SceneSpec.load(scene_name, object_override=rel.object_name)
-        spec = lattice_spec(self.scene, model.spec.step_m, scenes)
-        cache = None if scenes.cache_dir is None else Path(scenes.cache_dir)
-        table = load_ik_table(self.scene, spec, cache_dir=cache, progress=False)
-        self.lattice = ConfigurationLattice(self.scene, table, model.spec.action_vectors())
-        contact = UnmodelledContact(self.scene)
-        self.contact = contact
-        self.models = {kind: LatticePOMDP(model, self.lattice, contact, inner=kind,
-                                          initial=belief) for kind in MODELS}
+        discrete = scene_lat_pomdp(scene_name, rel, scenes, model=model, belief=belief)
+        self.scene, self.lattice = discrete.lattice.scene, discrete.lattice
+        self.contact = contact = discrete.contact
+        self.models = {"discrete": discrete,
+                       "continuous": LatticePOMDP(model, self.lattice, contact,
+                                                  inner="continuous", initial=belief)}
         lat_settings = DespotSettings(scenarios=rel.despot_scenarios, depth=rel.despot_depth,
                                       max_trials=scenes.lat_despot_trials,
                                       seconds=scenes.lat_despot_seconds)

@@ -124,23 +124,15 @@ def lat_despot_budget(decisions: int, budget_s: float, *, seed: int = 0,
     """Lat-DESPOT on ``cul_de_sac`` (the ch. 7 problem and belief), ``decisions``
     decisions from the lattice's start (its IK table solved into ``cache_dir`` on first
     use)."""
-    from experiments.latdespot_scenes import SceneSettings, lattice_spec
-    from models.herb.scene import SceneSpec
-    from planning.lattice.contact import UnmodelledContact
-    from planning.lattice.ik_table import load_ik_table
-    from planning.lattice.lattice import ConfigurationLattice
+    from experiments.latdespot_scenes import SceneSettings, scene_lat_pomdp
     from planning.lattice.planners import LatDespotPlanner
-    from planning.lattice.pomdp import LatticePOMDP
     from planning.pomdp.despot import DespotSettings
 
     rel = RelSettings()
-    model, belief, _ = build_rel_problem(rel)
-    scene = SceneSpec.load("cul_de_sac", object_override=rel.object_name)
-    spec = lattice_spec(scene, model.spec.step_m, SceneSettings())
-    table = load_ik_table(scene, spec, cache_dir=cache_dir, progress=progress)
-    lattice = ConfigurationLattice(scene, table, model.spec.action_vectors())
-    pomdp = LatticePOMDP(model, lattice, UnmodelledContact(scene), inner="discrete",
-                         initial=belief)
+    cache = None if cache_dir is None else str(cache_dir)
+    pomdp = scene_lat_pomdp("cul_de_sac", rel, SceneSettings(cache_dir=cache),
+                            progress=progress)
+    model, belief, lattice = pomdp.model, pomdp.initial, pomdp.lattice
     planner = LatDespotPlanner(pomdp, DespotSettings(
         scenarios=rel.despot_scenarios, depth=rel.despot_depth, seconds=budget_s))
     rng = np.random.default_rng((seed, 43))

@@ -1,5 +1,6 @@
 """``cmanip bench despot``: a .pomdp file runs through DESPOT unchanged, the JSON holds
-what the issue names, and a bad problem is a clear error (exit 2)."""
+what the issue names, and a bad problem is a clear error (exit 2); ``cmanip bench
+latdespot`` likewise refuses bad input."""
 
 import json
 
@@ -28,3 +29,8 @@ def test_a_bad_problem_is_a_clear_error(tmp_path, capsys):
     assert "rocksample:N:K" in capsys.readouterr().err
     assert main(["bench", "despot", "--problem", str(tmp_path / "none.pomdp")]) == 2
     assert "none.pomdp" in capsys.readouterr().err
+
+
+def test_the_lat_despot_bench_refuses_bad_input_before_building_anything(tmp_path):
+    assert main(["bench", "latdespot", "--decisions", "0"]) == 2
+    assert main(["bench", "latdespot", "--scene", str(tmp_path / "none.yaml")]) == 2
