@@ -109,6 +109,8 @@ def register(commands) -> None:
                                "it out; the options given still apply")
     handplan.add_argument("--out", type=Path, required=True,
                           help="output directory (summary.json, figures, config.yaml)")
+    runner_options(handplan)
+    handplan.add_argument("--no-progress", action="store_true", help="no progress bars")
     handplan.set_defaults(handler=_handplan)
 
     closedloop = subcommand(studies, "closedloop", "closed-loop episodes from the thesis' "
@@ -407,7 +409,8 @@ def _handplan(args: argparse.Namespace) -> int:
     config = resolve_handplan(args)
     if config.study.trials < 2:
         raise ValueError(f"--trials must be >= 2, got {config.study.trials}")
-    summary = run_study(config.part, config.study, args.out)
+    summary = run_study(config.part, config.study, args.out, backend=backend_of(args),
+                        resume=args.resume, progress=not args.no_progress)
     write_config(config, args.out)
     for key, label in (("post_contact_discrete", "post-contact, discrete model"),
                        ("post_contact", "post-contact, continuous model"),

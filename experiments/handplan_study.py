@@ -18,6 +18,14 @@ Every trial ``j`` starts from belief point ``j mod 15``; random streams are keye
 Writes ``summary.json`` (per policy ``success_rate`` with its 95 % Wilson interval,
 ``discounted_value`` with its 95 % half-width, success over time), PNG plots, the
 policies (``.npz``) and the fingertip model in Cassandra's ``.pomdp`` format.
+
+The continuous-model evaluations run on the trial runner (:mod:`experiments.runner`), one
+job per (part, sensors, policy): within a job all ``trials`` episodes advance in lockstep,
+the true objects pushed in one batch per action (the vectorisation over trials that makes
+them cheap), so a job is the unit that runs on a worker and is kept in ``trials.jsonl``
+when it finishes. Workers rebuild the model from the settings and load the solved
+policies from the study's directory; ``resume`` reuses those policies (not solved again)
+and the finished jobs.
 """
 
 from __future__ import annotations
@@ -31,6 +39,7 @@ import numpy as np
 from tqdm import tqdm
 
 from estimation.hand.manifolds import AnalyticManifold
+from experiments.runner import Backend, Job, TrialStore, map_trials
 from experiments.statistics import half_width, wilson_interval
 from experiments.timing import median_ms
 from models.planar.world import PlanarWorld
@@ -111,29 +120,52 @@ def _stream(name: str) -> int:
     return sum((i + 1) * ord(c) for i, c in enumerate(name))
 
 
-def solve_problem(settings: HandplanSettings, sensors: str,
-                  beliefs: list[GaussianBelief]) -> SolvedProblem:
-    """Build the model for ``sensors`` and solve QMDP and the point-based policy."""
+def near_and_far(settings: HandplanSettings) -> tuple[list[GaussianBelief],
+                                                     list[GaussianBelief]]:
+    """The belief points 20 cm ahead (post-contact) and the same 50 cm ahead (full)."""
+    near = belief_points(settings.belief_count, POST_CONTACT_DISTANCE_M, rng=_rng(settings, 3))
+    far = [GaussianBelief((PRE_CONTACT_DISTANCE_M, *b.mean[1:]), b.std) for b in near]
+    return near, far
+
+
+def build_model(settings: HandplanSettings, sensors: str) -> HandPOMDP:
     world = PlanarWorld.load(settings.object_name, sensors=sensors)
-    model = build_hand_pomdp(world, settings.spec, rng=_rng(settings, _stream(sensors)))
+    return build_hand_pomdp(world, settings.spec, rng=_rng(settings, _stream(sensors)))
+
+
+def policy_path(out: Path, sensors: str, name: str) -> Path:
+    return Path(out) / f"policy_{sensors}_{name.lower()}.npz"
+
+
+def solve_problem(settings: HandplanSettings, sensors: str, beliefs: list[GaussianBelief], *,
+                  kept: Path | None = None) -> SolvedProblem:
+    """Build the model for ``sensors`` and solve QMDP and the point-based policy (or, with
+    ``kept``, load the point-based policy a resumed study saved there)."""
+    model = build_model(settings, sensors)
     start = time.perf_counter()
     Q = solve_mdp(model.pomdp)
     qmdp_s = time.perf_counter() - start
     initial = discretise(model, beliefs, settings)
-    solver = PointBasedSolver(model.pomdp)
-    bar = SolverProgressBar(settings.solve_seconds, settings.solve_trials,
-                            desc=f"point-based solver ({sensors})")
-    start = time.perf_counter()
-    pomdp_policy = solver.solve(settings.solve_seconds, initial_beliefs=initial, callback=bar,
-                                max_trials=settings.solve_trials)
-    bar.close()
-    solve_s = time.perf_counter() - start
+    history: list = []
+    saved = None if kept is None else policy_path(kept, sensors, "POMDP")
+    if saved is not None and saved.is_file():
+        pomdp_policy, solve_s = AlphaVectorPolicy.load(saved), None
+    else:
+        solver = PointBasedSolver(model.pomdp)
+        bar = SolverProgressBar(settings.solve_seconds, settings.solve_trials,
+                                desc=f"point-based solver ({sensors})")
+        start = time.perf_counter()
+        pomdp_policy = solver.solve(settings.solve_seconds, initial_beliefs=initial,
+                                    callback=bar, max_trials=settings.solve_trials)
+        bar.close()
+        solve_s = time.perf_counter() - start
+        history = list(solver.report.history)
     policies = {"QMDP": qmdp_vectors(Q, model.pomdp.actions), "POMDP": pomdp_policy}
     timings = {"build_s": model.build_seconds, "qmdp_solve_s": qmdp_s,
                "pomdp_solve_s": solve_s}
     for name, policy in policies.items():
         timings[f"{name.lower()}_act_ms"] = median_ms(lambda p=policy: p.act(initial[0]), 20)
-    return SolvedProblem(model, initial, policies, timings, list(solver.report.history))
+    return SolvedProblem(model, initial, policies, timings, history)
 
 
 def discretise(model: HandPOMDP, beliefs: list[GaussianBelief],
@@ -159,72 +191,101 @@ def evaluate_discrete(problem: SolvedProblem, settings: HandplanSettings, *,
     return out
 
 
-def evaluate_continuous(problem: SolvedProblem, beliefs: list[GaussianBelief],
-                        settings: HandplanSettings, *, precontact: bool,
-                        label: str) -> dict[str, dict]:
-    """H2 (and H3, H4 with ``precontact``): each policy on the continuous planar model.
-    Without ``precontact``, ``beliefs`` are the problem's own belief points and each policy
-    starts from their discrete versions (``problem.initial``).
+def continuous_batch(problem: SolvedProblem, name: str, beliefs: list[GaussianBelief],
+                     settings: HandplanSettings, *, precontact: bool, label: str) -> dict:
+    """H2 (and H3, H4 with ``precontact``): policy ``name`` on the continuous planar model,
+    ``trials`` episodes. Without ``precontact``, ``beliefs`` are the problem's own belief
+    points and the policy starts from their discrete versions (``problem.initial``).
 
     All trials advance together: the true objects are pushed in one batch per action, and
     each trial's policy updates its own belief from its own reading.
     """
     model, world = problem.model, problem.model.world
+    vectors = problem.policies[name]
     horizon = settings.horizon + (15 if precontact else 0)
-    out = {}
-    for name, vectors in problem.policies.items():
-        planner = PreContactPlanner(model, vectors, settings.precontact) if precontact else None
-        plans: dict[int, PreContactPlan] = {}
-        trials = settings.trials
-        rngs = [_rng(settings, 13, _stream(label + name), j) for j in range(trials)]
-        states = np.vstack([beliefs[j % len(beliefs)].sample(world, 1, rng=rngs[j])
-                            for j in range(trials)])
-        policies = []
-        for j in tqdm(range(trials), desc=f"{label} {name}: start", unit="trial",
-                      leave=False):
-            k = j % len(beliefs)
-            policy = HandPolicy(model, vectors, planner)
-            if precontact:
-                particles = beliefs[k].sample(world, settings.precontact_particles,
-                                              rng=rngs[j])
-                if k not in plans:
-                    plans[k] = planner.plan(particles, rng=_rng(settings, 17, k))
-                policy.reset(particles, plan=plans[k], rng=rngs[j])
-            else:
-                policy.reset(problem.initial[k], rng=rngs[j])
-            policies.append(policy)
-        success = np.zeros((horizon + 1, trials), dtype=bool)
-        success[0] = model.in_goal(states)
-        returns = np.zeros(trials)
-        actions_vec = settings.spec.action_vectors()
-        for t in tqdm(range(horizon), desc=f"{label} {name}", unit="step"):
-            actions = np.array([p.act() for p in policies])
-            returns -= settings.spec.discount ** t * (~model.in_goal(states))
-            for a in np.unique(actions):
-                sel = np.flatnonzero(actions == a)
-                u = np.vstack([rngs[j].random(world.uniforms_per_step(actions_vec[a]))
-                               for j in sel])
-                states[sel] = world.step(states[sel], actions_vec[a], u)
-            u_obs = np.vstack([rngs[j].random(2) for j in range(trials)])
-            readings = world.sample_observation(states, u_obs)
-            for j, policy in enumerate(policies):
-                policy.observe(int(actions[j]), readings[j], rng=rngs[j])
-            success[t + 1] = model.in_goal(states)
-        rate = success.mean(axis=1)
-        lo, hi = wilson_interval(success[-1].sum(), trials)
-        out[name] = {
-            "success_rate": float(rate[-1]), "success_rate_ci95": [lo, hi],
-            "success_over_time": rate.tolist(),
-            "discounted_value": float(returns.mean()),
-            "discounted_value_ci95": half_width(returns),
-            "trials": trials,
-        }
+    planner = PreContactPlanner(model, vectors, settings.precontact) if precontact else None
+    plans: dict[int, PreContactPlan] = {}
+    trials = settings.trials
+    rngs = [_rng(settings, 13, _stream(label + name), j) for j in range(trials)]
+    states = np.vstack([beliefs[j % len(beliefs)].sample(world, 1, rng=rngs[j])
+                        for j in range(trials)])
+    policies = []
+    for j in tqdm(range(trials), desc=f"{label} {name}: start", unit="trial", leave=False):
+        k = j % len(beliefs)
+        policy = HandPolicy(model, vectors, planner)
         if precontact:
-            out[name]["plans"] = {str(k): {"actions": list(p.actions), "reason": p.reason,
-                                           "expansions": p.expansions,
-                                           "seconds": p.seconds}
-                                  for k, p in sorted(plans.items())}
+            particles = beliefs[k].sample(world, settings.precontact_particles, rng=rngs[j])
+            if k not in plans:
+                plans[k] = planner.plan(particles, rng=_rng(settings, 17, k))
+            policy.reset(particles, plan=plans[k], rng=rngs[j])
+        else:
+            policy.reset(problem.initial[k], rng=rngs[j])
+        policies.append(policy)
+    success = np.zeros((horizon + 1, trials), dtype=bool)
+    success[0] = model.in_goal(states)
+    returns = np.zeros(trials)
+    actions_vec = settings.spec.action_vectors()
+    for t in tqdm(range(horizon), desc=f"{label} {name}", unit="step", leave=False):
+        actions = np.array([p.act() for p in policies])
+        returns -= settings.spec.discount ** t * (~model.in_goal(states))
+        for a in np.unique(actions):
+            sel = np.flatnonzero(actions == a)
+            u = np.vstack([rngs[j].random(world.uniforms_per_step(actions_vec[a]))
+                           for j in sel])
+            states[sel] = world.step(states[sel], actions_vec[a], u)
+        u_obs = np.vstack([rngs[j].random(2) for j in range(trials)])
+        readings = world.sample_observation(states, u_obs)
+        for j, policy in enumerate(policies):
+            policy.observe(int(actions[j]), readings[j], rng=rngs[j])
+        success[t + 1] = model.in_goal(states)
+    rate = success.mean(axis=1)
+    lo, hi = wilson_interval(success[-1].sum(), trials)
+    out = {
+        "success_rate": float(rate[-1]), "success_rate_ci95": [lo, hi],
+        "success_over_time": rate.tolist(),
+        "discounted_value": float(returns.mean()),
+        "discounted_value_ci95": half_width(returns),
+        "trials": trials,
+    }
+    if precontact:
+        out["plans"] = {str(k): {"actions": list(p.actions), "reason": p.reason,
+                                 "expansions": p.expansions, "seconds": p.seconds}
+                        for k, p in sorted(plans.items())}
     return out
+
+
+_PROBLEMS: dict[tuple, SolvedProblem] = {}
+"""This process' problems, keyed by (settings, sensors, the policies' file and its version);
+the study's own process registers the ones it solved, so a serial run builds nothing
+twice."""
+
+
+def _problem_key(settings: HandplanSettings, sensors: str, directory: str) -> tuple:
+    path = policy_path(Path(directory), sensors, "POMDP")
+    return settings, sensors, str(path), path.stat().st_mtime_ns
+
+
+def _worker_problem(settings: HandplanSettings, sensors: str, directory: str) -> SolvedProblem:
+    """A worker's problem: the model rebuilt from the settings (deterministic), the
+    policies loaded from the study's directory."""
+    key = _problem_key(settings, sensors, directory)
+    if key not in _PROBLEMS:
+        model = build_model(settings, sensors)
+        initial = discretise(model, near_and_far(settings)[0], settings)
+        policies = {name: AlphaVectorPolicy.load(policy_path(Path(directory), sensors, name))
+                    for name in POLICIES}
+        _PROBLEMS.clear()  # one study at a time
+        _PROBLEMS[key] = SolvedProblem(model, initial, policies, {}, [])
+    return _PROBLEMS[key]
+
+
+def continuous_job(settings: HandplanSettings, sensors: str, directory: str, name: str,
+                   precontact: bool, label: str) -> dict:
+    """One (part, sensors, policy) evaluation, in whichever process the runner chose."""
+    problem = _worker_problem(settings, sensors, directory)
+    near, far = near_and_far(settings)
+    return continuous_batch(problem, name, far if precontact else near, settings,
+                            precontact=precontact, label=label)
 
 
 def feasible_observations(sensors: str, settings: HandplanSettings) -> dict[str, int]:
@@ -238,65 +299,75 @@ def feasible_observations(sensors: str, settings: HandplanSettings) -> dict[str,
             "feasible": int(len(keys)), "feasible_keys": keys.tolist()}
 
 
-def run_study(part: str, settings: HandplanSettings, out: Path) -> dict:
-    """Run ``part`` (see the module docstring); write summary.json and the plots."""
+def run_study(part: str, settings: HandplanSettings, out: Path, *,
+              backend: Backend = Backend(), resume: bool = False,
+              progress: bool = True) -> dict:
+    """Run ``part`` (see the module docstring); write summary.json and the plots. The
+    continuous-model evaluations run on ``backend``, each kept in ``out/trials.jsonl``;
+    ``resume`` reuses the policies saved in ``out`` and the finished evaluations."""
     from experiments.handplan_plots import plot_coverage, plot_problem, plot_results
 
     if part not in PARTS:
         raise ValueError(f"part must be one of {PARTS}, got {part!r}")
     out.mkdir(parents=True, exist_ok=True)
-    near = belief_points(settings.belief_count, POST_CONTACT_DISTANCE_M,
-                         rng=_rng(settings, 3))
-    far = [GaussianBelief((PRE_CONTACT_DISTANCE_M, *b.mean[1:]), b.std) for b in near]
+    near, far = near_and_far(settings)
     summary: dict = {"part": part, "settings": _settings_dict(settings),
                      "belief_means": [list(b.mean) for b in near]}
+    sensor_sets = (("fingertips",) if part in ("post-contact", "full")
+                   else ("fingertips", "links"))
     solved: dict[str, SolvedProblem] = {}
+    for sensors in sensor_sets:
+        p = solved[sensors] = solve_problem(settings, sensors, near,
+                                            kept=out if resume else None)
+        for name, policy in p.policies.items():
+            policy.save(policy_path(out, sensors, name))
+        _PROBLEMS[_problem_key(settings, sensors, str(out))] = p
+        summary.setdefault("models", {})[sensors] = {
+            "states": len(p.model.pomdp.states), "free_states": p.model.free_count,
+            "contact_states": p.model.contact_count,
+            "observations": len(p.model.pomdp.observations),
+            "timings": p.timings,
+            "solver_bounds": p.bounds[-1][1:] if p.bounds else None,
+            "solver_reused": p.timings["pomdp_solve_s"] is None,
+            "alpha_vectors": len(p.policies["POMDP"].alphas)}
 
-    def checkpoint():
-        (out / "summary.json").write_text(json.dumps(summary, indent=2))
-
-    def problem(sensors: str) -> SolvedProblem:
-        if sensors not in solved:
-            solved[sensors] = solve_problem(settings, sensors, near)
-            p = solved[sensors]
-            for name, policy in p.policies.items():
-                policy.save(out / f"policy_{sensors}_{name.lower()}.npz")
-            summary.setdefault("models", {})[sensors] = {
-                "states": len(p.model.pomdp.states), "free_states": p.model.free_count,
-                "contact_states": p.model.contact_count,
-                "observations": len(p.model.pomdp.observations),
-                "timings": p.timings, "solver_bounds": p.bounds[-1][1:],
-                "alpha_vectors": len(p.policies["POMDP"].alphas)}
-        return solved[sensors]
+    # (summary path, sensors, precontact, label) of each continuous evaluation
+    evaluations = []
+    if part in ("post-contact", "all"):
+        evaluations.append((("post_contact",), "fingertips", False, "post-contact"))
+    if part in ("full", "all"):
+        evaluations.append((("full",), "fingertips", True, "full"))
+    if part in ("coverage", "all"):
+        for sensors in ("fingertips", "links"):
+            evaluations.append((("coverage", sensors, "post_contact"), sensors, False,
+                                f"coverage {sensors}"))
+            evaluations.append((("coverage", sensors, "full"), sensors, True,
+                                f"coverage {sensors} full"))
+    jobs = [Job(f"{label}/{name}", (settings, sensors, str(out), name, precontact, label))
+            for _, sensors, precontact, label in evaluations for name in POLICIES]
+    store = TrialStore(out, "handplan", _settings_dict(settings), resume=resume)
+    results = iter(map_trials(continuous_job, jobs, backend=backend, store=store,
+                              desc="handplan evaluations", progress=progress))
 
     if part in ("post-contact", "all"):
-        p = problem("fingertips")
+        p = solved["fingertips"]
         write_pomdp(p.model.pomdp, out / "hand_fingertips.pomdp")
         plot_problem(p.model, near, far, out / "problem.png")
         summary["post_contact_discrete"] = evaluate_discrete(p, settings)
-        summary["post_contact"] = evaluate_continuous(p, near, settings, precontact=False,
-                                                      label="post-contact")
-        checkpoint()
-    if part in ("full", "all"):
-        p = problem("fingertips")
-        summary["full"] = evaluate_continuous(p, far, settings, precontact=True,
-                                              label="full")
-        checkpoint()
     if part in ("coverage", "all"):
-        summary["coverage"] = {}
-        for sensors in ("fingertips", "links"):
-            p = problem(sensors)
-            summary["coverage"][sensors] = {
-                "observations": feasible_observations(sensors, settings),
-                "post_contact_discrete": evaluate_discrete(p, settings),
-                "post_contact": evaluate_continuous(p, near, settings, precontact=False,
-                                                    label=f"coverage {sensors}"),
-                "full": evaluate_continuous(p, far, settings, precontact=True,
-                                            label=f"coverage {sensors} full"),
-            }
+        summary["coverage"] = {sensors: {
+            "observations": feasible_observations(sensors, settings),
+            "post_contact_discrete": evaluate_discrete(solved[sensors], settings)}
+            for sensors in ("fingertips", "links")}
+    for path, *_ in evaluations:
+        entry = summary
+        for key in path[:-1]:
+            entry = entry[key]
+        entry[path[-1]] = {name: next(results) for name in POLICIES}
+    if part in ("coverage", "all"):
         plot_coverage(summary, out / "coverage.png")
     plot_results(summary, out)
-    checkpoint()
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary
 
 

@@ -42,7 +42,7 @@ import numpy as np
 from experiments.handplan_study import (
     HandplanSettings,
     SolvedProblem,
-    evaluate_continuous,
+    continuous_batch,
     evaluate_discrete,
 )
 from experiments.latdespot_continuous import run_continuous_episodes, summarise_episodes
@@ -218,10 +218,9 @@ def evaluate_rel(settings: RelSettings, model: HandPOMDP, belief: GaussianBelief
             rel[name]["planning_ms_median"] = median_ms(lambda p=policy: p.act(initial), 50)
     if not continuous:
         return rel
-    on_continuous = evaluate_continuous(problem, [belief], evaluation, precontact=False,
-                                        label="rel")
     for name in policies:
-        c = on_continuous[name]
+        c = continuous_batch(problem, name, [belief], evaluation, precontact=False,
+                             label="rel")
         rel[name].update({"success_rate": c["success_rate"],
                           "success_rate_ci95": c["success_rate_ci95"],
                           "success_over_time": c["success_over_time"],

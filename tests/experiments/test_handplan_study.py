@@ -42,12 +42,21 @@ def test_every_part_writes_its_summary_and_figures(tmp_path):
     assert model.shape[1:] == (5, 4)
 
 
-def test_same_seed_same_results(tmp_path):
-    """With a trial budget (not wall time) for the solver, a run is a function of its seed."""
+def test_same_seed_same_results_on_any_backend_and_resumed(tmp_path):
+    """With a trial budget (not wall time) for the solver, a run is a function of its seed:
+    serial or on two worker processes (which rebuild the model and load the policies), and
+    resumed (the saved policy reused, not solved again; the finished evaluations kept)."""
+    from experiments.runner import Backend
+
     settings = replace(TINY, trials=3, solve_seconds=60.0, solve_trials=20)
-    a = run_study("post-contact", settings, tmp_path / "a")
-    b = run_study("post-contact", settings, tmp_path / "b")
+    a = run_study("post-contact", settings, tmp_path / "a", progress=False)
+    b = run_study("post-contact", settings, tmp_path / "b", progress=False,
+                  backend=Backend("processes", 2))
     assert a["post_contact"] == b["post_contact"]
+    assert not b["models"]["fingertips"]["solver_reused"]
+    c = run_study("post-contact", settings, tmp_path / "b", progress=False, resume=True)
+    assert c["post_contact"] == a["post_contact"]
+    assert c["models"]["fingertips"]["solver_reused"]
 
 
 def test_links_layout_has_one_sensor_per_planar_link():
