@@ -50,9 +50,7 @@ def run_latdespot_bench(scene: str = "cul_de_sac", *, decisions: int = 60,
                 for engine in ENGINES}
     initial = lat.model.belief(lat.initial.sample(model.world, rel.belief_particles,
                                                   rng=np.random.default_rng([seed, 1])))
-    free = ~lat.cells_touch(np.full(len(initial), lattice.start_point),
-                            np.arange(len(initial)))
-    initial = initial * free / float(np.sum(initial * free))
+    initial = lat.free_at_start(initial)
     times = {engine: [] for engine in ENGINES}
     nodes = {engine: [] for engine in ENGINES}
     same_action, same_nodes = 0, 0

@@ -217,10 +217,7 @@ class SceneEpisodes:
         self.lat = {"lat-despot": LatDespotPlanner(self.models["discrete"], lat_settings),
                     "lat-despot-pb": LatDespotPlanner(pb, lat_settings)}
         self.rel_despot = rel_despot
-        start = self.lattice.start_point
-        free = ~self.models["discrete"].cells_touch(np.full(len(initial), start),
-                                                     np.arange(len(initial)))
-        self.initial = initial * free / float(np.sum(initial * free))
+        self.initial = discrete.free_at_start(initial)
 
     def decide(self, policy: str, point: int, belief: np.ndarray,
                rng: np.random.Generator) -> tuple[int, float]:

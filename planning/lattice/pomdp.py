@@ -186,6 +186,13 @@ class LatticePOMDP:
         poses = self.initial.sample(self.model.world, n, rng=rng)
         return self.from_poses(self.lattice.start_point, poses)
 
+    def free_at_start(self, belief: np.ndarray) -> np.ndarray:
+        """(S,) the discrete ``belief`` (S,) conditioned on the object touching nothing with
+        the robot at the lattice's start (the cells that touch removed, renormalised)."""
+        free = ~self.cells_touch(np.full(len(belief), self.lattice.start_point),
+                                 np.arange(len(belief)))
+        return belief * free / float(np.sum(belief * free))
+
     def with_point(self, point: int, inner_states: np.ndarray) -> np.ndarray:
         """Rows ``[point, s_rel]`` of the inner model's states (n, d)."""
         inner = np.asarray(inner_states, dtype=float).reshape(len(inner_states), -1)
