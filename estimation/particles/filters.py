@@ -271,8 +271,11 @@ class ManifoldParticleFilter:
             free = ~self.world.in_contact(predicted)
             restricted = _normalised(np.where(free, cpf, -np.inf))
             if restricted is not None:
-                parts_states.append(predicted)
-                parts_log_w.append(restricted + np.log(phi))
+                # both sets hold the same particles, so each gets its mixed weight once;
+                # listed twice, the resampler would drop a tenth of them and copy another
+                # tenth at every free step even when all are free, and the belief would
+                # drift like a random walk between contacts
+                cpf = mixed_log_weights(cpf, restricted, phi)
         degenerate = cpf is None
         if cpf is not None:
             share = 1.0 - phi if parts_states else 1.0
@@ -284,6 +287,13 @@ class ManifoldParticleFilter:
                                    belief.angular)
         diagnostics = UpdateDiagnostics(contact, dual_used, failed, degenerate, evidence)
         return posterior.resample(len(belief), rng=rng), diagnostics
+
+
+def mixed_log_weights(first: np.ndarray, second: np.ndarray, phi: float) -> np.ndarray:
+    """log((1 - phi) exp(first) + phi exp(second)): two normalised log-weight vectors (N,)
+    over the same particles, mixed."""
+    with np.errstate(divide="ignore"):
+        return np.logaddexp(first + np.log1p(-phi), second + np.log(phi))
 
 
 def dual_density_ratio(predicted: np.ndarray, prior_w: np.ndarray, angular: tuple[int, ...],

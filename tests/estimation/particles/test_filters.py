@@ -82,6 +82,23 @@ def test_mixing_rate_zero_is_the_cpf_and_bad_parameters_are_refused(box_world, b
         ManifoldParticleFilter(box_world, box_manifold, mixing_rate=1.5)
 
 
+def test_a_free_reading_where_every_particle_is_free_keeps_every_particle(box_world,
+                                                                          box_manifold):
+    """The MPF's free-space set is the conventional set restricted to free space: where
+    every particle is free the two are one, and resampling their mixture must keep each
+    particle once (listed twice, a tenth were dropped and a tenth copied at every free
+    step, and the belief drifted between contacts)."""
+    rng = np.random.default_rng(4)
+    belief = ParticleBelief.uniform(box_world.sample_gaussian(
+        np.array([0.4, 0.0, 0.0]), [0.01, 0.01, 0.1], 100, rng=rng))  # far from the hand
+    assert not box_world.in_contact(belief.states).any()
+    mpf = ManifoldParticleFilter(box_world, box_manifold, mixing_rate=0.5)
+    free = np.zeros(box_world.sensor_count, bool)
+    posterior, diagnostics = mpf.update(belief, np.zeros(3), free, rng=rng)
+    assert not diagnostics.dual_used
+    assert len(np.unique(posterior.states, axis=0)) == len(belief)
+
+
 def test_density_share_keeps_phi_for_duals_where_the_posterior_is_and_cuts_far_ones():
     rng = np.random.default_rng(0)
     predicted = rng.normal(0.0, 0.1, (200, 2))
