@@ -38,8 +38,10 @@ def register(commands) -> None:
 
 
 def mpf_variant_options(parser, defaults) -> None:
-    """``--constraints`` and ``--dual-share``, the configuration MPF's variants beyond the
-    thesis (defaults from ``defaults``, a settings dataclass with both fields)."""
+    """``--constraints``, ``--dual-share`` and ``--metric``, the configuration MPF's
+    variants beyond the thesis (defaults from ``defaults``, a settings dataclass with the
+    three fields)."""
+    from estimation.configuration.manifold import METRICS
     from estimation.configuration.projection import CONSTRAINTS
     from estimation.particles.filters import DUAL_SHARES
 
@@ -50,6 +52,9 @@ def mpf_variant_options(parser, defaults) -> None:
     setting_option(parser, "--dual-share", defaults.dual_share,
                    "the MPF's mass for its duals (fixed: phi, Alg. 4.2; density: phi scaled "
                    "by the posterior density the duals see)", choices=DUAL_SHARES)
+    setting_option(parser, "--metric", defaults.metric,
+                   "the metric of the projection's balls and steps (joint: joint space, "
+                   "sec. 5.2; kernel: each joint in its kernel bandwidths)", choices=METRICS)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -65,7 +70,7 @@ def _run(args: argparse.Namespace) -> int:
     given = vars(args)
     settings = replace(ConfigestEpisodeSettings(), **{
         key: given[key] for key in ("arm", "particles", "seed", "tactile_error_rate", "constraints",
-                                "dual_share")
+                                "dual_share", "metric")
         if key in given})
     if settings.tactile_error_rate is not None and not 0 <= settings.tactile_error_rate <= 1:
         raise ValueError(f"--tactile-error-rate must be in [0, 1], got "

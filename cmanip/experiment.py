@@ -181,7 +181,7 @@ def _configest(args: argparse.Namespace) -> int:
     settings = overridden(load_config(ConfigestSettings, args.config), args, {
         "trials": "trials", "seed": "seed", "method": "method",
         "ball_radius": "ball_radius_rad", "constraints": "constraints",
-        "dual_share": "dual_share"})
+        "dual_share": "dual_share", "metric": "metric"})
     if "arm" in vars(args):
         settings = replace(settings, arms=ARMS if args.arm == "all" else (args.arm,))
     for arm in settings.arms:  # a bad arm file (or link) fails before any trial runs

@@ -29,6 +29,7 @@ import numpy as np
 
 from estimation.configuration.belief import joint_rmse
 from estimation.configuration.manifold import (
+    METRICS,
     ExplicitTwoLinkManifold,
     ProjectionManifold,
     ProjectionStats,
@@ -65,6 +66,8 @@ class ConfigestSettings:
             (see :mod:`estimation.configuration.projection`).
         dual_share: the MPF's split between its sets, ``fixed`` (Alg. 4.2) or ``density``
             (see :class:`estimation.particles.filters.ManifoldParticleFilter`).
+        metric: the particle and ball projections' metric, ``joint`` (sec. 5.2) or
+            ``kernel`` (see :mod:`estimation.configuration.manifold`).
     """
 
     arms: tuple[str, ...] = ARMS
@@ -78,6 +81,7 @@ class ConfigestSettings:
     ball_radius_rad: float | None = None
     constraints: str = "active"
     dual_share: str = "fixed"
+    metric: str = "joint"
 
     def __post_init__(self):
         if self.trials < 2:
@@ -96,6 +100,12 @@ class ConfigestSettings:
         if self.constraints not in CONSTRAINTS:
             raise ValueError(f"constraints must be one of {', '.join(CONSTRAINTS)}, got "
                              f"{self.constraints!r}")
+        if self.metric not in METRICS:
+            raise ValueError(f"metric must be one of {', '.join(METRICS)}, got "
+                             f"{self.metric!r}")
+        if self.metric == "kernel" and self.ball_radius_rad is not None:
+            raise ValueError("ball_radius_rad is the joint metric's; the kernel metric's "
+                             "balls are three bandwidths")
         if self.dual_share not in DUAL_SHARES:
             raise ValueError(f"dual_share must be one of {', '.join(DUAL_SHARES)}, got "
                              f"{self.dual_share!r}")
@@ -156,7 +166,8 @@ def build_filter(world: ArmWorld, kind: str, settings: ConfigestSettings, *,
     manifold = (ExplicitTwoLinkManifold(world) if strategy == "explicit" else
                 ProjectionManifold(world, strategy=strategy, method=settings.method,
                                    ball_radius_rad=settings.ball_radius_rad,
-                                   constraints=settings.constraints))
+                                   constraints=settings.constraints,
+                                   metric=settings.metric))
     filt = make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
                        mixing_rate=settings.mixing_rate, dual_share=settings.dual_share,
                        outlier_log_evidence=outlier_log_evidence)

@@ -8,7 +8,9 @@ contact on the distal links' patches, pooled per finger like HERB's strain gauge
 the thesis' 10 % reading errors) reports contact. Two estimators run side by side on the
 same readings: the CPF and MPF-Ball (n = 100 each: the MPF as 90 propagated and 10 dual
 particles, phi = 0.1). Outputs: ``summary.json`` (joint error of each estimate, final and
-mean), ``joint_error.png`` (error over time, contact readings marked) and, with Meshcat,
+mean), ``episode.npz`` (times, true, commanded and encoder configurations, readings and
+each estimate, per update), ``joint_error.png`` (error over time, contact readings
+marked) and, with Meshcat,
 ``replay.html`` (the arm, the ghost arms of MPF-Ball's particles, both means, lit fingers).
 """
 
@@ -63,6 +65,8 @@ class ConfigestEpisodeSettings:
             ``full`` (:mod:`estimation.configuration.projection`).
         dual_share: the MPF's split between its sets, ``fixed`` (Alg. 4.2) or ``density``
             (:class:`estimation.particles.filters.ManifoldParticleFilter`).
+        metric: MPF-Ball's balls and projection in ``joint`` space (sec. 5.2) or in the
+            ``kernel`` bandwidths (:mod:`estimation.configuration.manifold`).
         tactile_error_rate: the tactile system's false-negative and in-contact
             false-positive rate (None: the arm file's ``sensor_error_rate``, which is also
             what the estimators assume).
@@ -81,6 +85,7 @@ class ConfigestEpisodeSettings:
     ball_radius_rad: float | None = None
     constraints: str = "active"
     dual_share: str = "fixed"
+    metric: str = "joint"
     tactile_error_rate: float | None = None
     seed: int = 0
     sim: SimulationConfig = field(default_factory=SimulationConfig)
@@ -144,7 +149,7 @@ def run_configest_episode(settings: ConfigestEpisodeSettings, out: Path, *,
         else:
             filt = make_filter("mpf", world, ProjectionManifold(
                 world, strategy="ball", ball_radius_rad=settings.ball_radius_rad,
-                constraints=settings.constraints),
+                constraints=settings.constraints, metric=settings.metric),
                                dual_particles=settings.dual_particles,
                                mixing_rate=settings.mixing_rate,
                                dual_share=settings.dual_share)
@@ -227,4 +232,8 @@ def run_configest_episode(settings: ConfigestEpisodeSettings, out: Path, *,
         "figures": [plot_joint_error(times, errors, contact, out / "joint_error.png")],
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    np.savez_compressed(out / "episode.npz", times_s=times, q_true_rad=q_true,
+                        contact=contact, encoders_rad=data["encoders"].data().T,
+                        commanded_rad=data["commanded"].data().T,
+                        **{f"mean_{kind}_rad": data[kind].data().T for kind in estimators})
     return summary

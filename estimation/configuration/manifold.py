@@ -18,6 +18,20 @@ samples are accepted or ``rounds`` batches of seeds are spent:
   a particle). Uniform over the union is exact: a ball picked uniformly, a point uniform
   in it, kept with probability 1 / (the number of balls that cover it).
 
+Two metrics (``metric``), for the balls and for the projection's step:
+
+- ``joint`` (the thesis): balls of radius r_b in joint space, projection by the smallest
+  joint motion. The kernel is not isotropic, though: on HERB's WAM after a touch the
+  bandwidths of the seven joints differ severalfold, and a ball of 3 times the widest
+  reaches 10-30 bandwidths along the narrow joints; measured on the ``wam_fingers`` arm,
+  the duals then land 0.2-0.35 rad from every particle, at prior densities e^-15 to
+  e^-700 of the particles' own, and the fixed share phi carries them into the belief.
+- ``kernel`` (beyond the thesis): the same construction in the kernel's own metric,
+  joint j scaled by its bandwidth h_j: ellipsoids of ``BALL_BANDWIDTHS`` bandwidths about
+  the particles, and the projection's smallest motion measured in bandwidths
+  (:func:`estimation.configuration.projection.project`'s ``scale``), so the duals stay
+  where the dual weights (the same kernel density) can tell them apart.
+
 :class:`ExplicitTwoLinkManifold` is the 2-DOF arm's explicit manifold (MPF-Explicit): the
 tip sensor's centre on the sphere of radius ``r_obstacle + r_ball`` about the point
 obstacle, reached by the elbow-up or the elbow-down configuration; for a point tip on a
@@ -40,6 +54,8 @@ from models.arms.world import ArmWorld, ball_points
 from models.pose import wrap_angle
 
 STRATEGIES = ("uniform", "particle", "ball")
+
+METRICS = ("joint", "kernel")
 
 BALL_BANDWIDTHS = 3.0
 """Default r_b, in kernel bandwidths (the largest joint's)."""
@@ -83,6 +99,8 @@ class ProjectionManifold:
         rounds: batches of ``n`` seeds tried before a draw gives up.
         eps_proj_m: acceptance tolerance (m).
         constraints: ``active`` (eq. 5.1) or ``full`` (:func:`project`).
+        metric: ``joint`` (the thesis) or ``kernel`` (module docstring): the metric of
+            the balls and of the projection of ``particle`` and ``ball`` seeds.
     """
 
     world: ArmWorld
@@ -92,6 +110,7 @@ class ProjectionManifold:
     rounds: int = 3
     eps_proj_m: float = EPS_PROJ_M
     constraints: str = "active"
+    metric: str = "joint"
     stats: ProjectionStats = field(default_factory=ProjectionStats)
 
     def __post_init__(self):
@@ -108,6 +127,12 @@ class ProjectionManifold:
         if self.constraints not in CONSTRAINTS:
             raise ValueError(f"unknown constraint set {self.constraints!r}; choose from "
                              f"{', '.join(CONSTRAINTS)}")
+        if self.metric not in METRICS:
+            raise ValueError(f"unknown metric {self.metric!r}; choose from "
+                             f"{', '.join(METRICS)}")
+        if self.metric == "kernel" and self.ball_radius_rad is not None:
+            raise ValueError("the kernel metric's balls are BALL_BANDWIDTHS bandwidths: "
+                             "ball_radius_rad is for the joint metric")
 
     def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator,
                predicted: ParticleBelief | None = None) -> np.ndarray:
@@ -124,10 +149,13 @@ class ProjectionManifold:
         self.stats.draws += 1
         start = time.perf_counter()
         accepted = []
+        scale = (self.bandwidth(predicted) if self.metric == "kernel"
+                 and self.strategy != "uniform" else None)
         for _ in range(self.rounds):
-            seeds = self.seeds(n, predicted, rng=rng)
+            seeds = self.seeds(n, predicted, rng=rng, scale=scale)
             result = project(self.world, seeds, active, method=self.method,
-                             eps_proj_m=self.eps_proj_m, constraints=self.constraints)
+                             eps_proj_m=self.eps_proj_m, constraints=self.constraints,
+                             scale=scale)
             self.stats.seeds += len(seeds)
             self.stats.failures += int((~result.success).sum())
             self.stats.iterations += int(result.iterations.sum())
@@ -140,8 +168,9 @@ class ProjectionManifold:
         return states
 
     def seeds(self, n: int, predicted: ParticleBelief | None, *,
-              rng: np.random.Generator) -> np.ndarray:
-        """(n, dof) seeds by the strategy."""
+              rng: np.random.Generator, scale: np.ndarray | None = None) -> np.ndarray:
+        """(n, dof) seeds by the strategy; ``scale`` (dof,): the kernel metric's
+        bandwidths (rad), None for the joint metric."""
         world = self.world
         if self.strategy == "uniform":
             if world.model.continuous:
@@ -150,33 +179,46 @@ class ProjectionManifold:
         states = np.asarray(predicted.states)
         if self.strategy == "particle":
             return states[rng.choice(len(states), n, p=predicted.weights)]
+        if scale is not None:
+            return union_of_balls(states, BALL_BANDWIDTHS, n, rng=rng,
+                                  wrap=world.model.continuous, scale=scale)
         radius = self.ball_radius(predicted)
         return union_of_balls(states, radius, n, rng=rng, wrap=world.model.continuous)
 
     def ball_radius(self, predicted: ParticleBelief) -> float:
-        """r_b (rad): the fixed value, or 3 of the prior's kernel bandwidths."""
+        """r_b (rad) of the joint metric: the fixed value, or 3 of the prior's widest
+        kernel bandwidths."""
         if self.ball_radius_rad is not None:
             return self.ball_radius_rad
-        h = silverman_bandwidth(np.asarray(predicted.states), predicted.weights,
-                                predicted.angular)
-        return float(BALL_BANDWIDTHS * h.max())
+        return float(BALL_BANDWIDTHS * self.bandwidth(predicted).max())
+
+    @staticmethod
+    def bandwidth(predicted: ParticleBelief) -> np.ndarray:
+        """(dof,) the prior's kernel bandwidths (rad; Silverman's, as the dual weights')."""
+        return silverman_bandwidth(np.asarray(predicted.states), predicted.weights,
+                                   predicted.angular)
 
 
 def union_of_balls(centers: np.ndarray, radius: float, n: int, *,
-                   rng: np.random.Generator, wrap: bool) -> np.ndarray:
+                   rng: np.random.Generator, wrap: bool,
+                   scale: np.ndarray | None = None) -> np.ndarray:
     """(n, d) points uniform over the union of balls of ``radius`` about ``centers``
     (N, d): a ball picked uniformly, a point uniform in it, kept with probability one over
-    the number of balls covering it (differences wrapped on the circle when ``wrap``)."""
+    the number of balls covering it (differences wrapped on the circle when ``wrap``).
+    With ``scale`` (d,), the balls are of the metric that divides coordinate j by
+    ``scale[j]`` (ellipsoids of half-axes ``radius * scale``)."""
     centers = np.unique(centers, axis=0)
     d = centers.shape[1]
+    scale = np.ones(d) if scale is None else np.asarray(scale, dtype=float)
     out = []
     while sum(len(o) for o in out) < n:
         k = max(n, 16)
-        points = centers[rng.integers(len(centers), size=k)] + ball_points(
+        points = centers[rng.integers(len(centers), size=k)] + scale * ball_points(
             rng.random((k, d + 1)), radius)
         diff = points[:, None, :] - centers[None]
         if wrap:
             diff = wrap_angle(diff)
+        diff = diff / scale
         cover = (np.einsum("kni,kni->kn", diff, diff) <= radius * radius).sum(axis=1)
         keep = rng.random(k) * np.maximum(cover, 1) < 1.0
         out.append(wrap_angle(points[keep]) if wrap else points[keep])
