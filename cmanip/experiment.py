@@ -77,7 +77,10 @@ def register(commands) -> None:
     pushval = subcommand(studies, "pushval",
                          "planar pushing model vs Drake on 20 straight pushes")
     pushval.add_argument("--push-distance", type=float, default=0.15, help="hand travel (m)")
-    pushval.add_argument("--out", type=Path, required=True, help="output directory")
+    runner_options(pushval)
+    pushval.add_argument("--out", type=Path, required=True,
+                         help="output directory (summary.json, push_validation.png, "
+                              "trials.jsonl)")
     pushval.add_argument("--no-progress", action="store_true", help="no progress bars")
     pushval.set_defaults(handler=_pushval)
 
@@ -367,6 +370,7 @@ def _pushval(args: argparse.Namespace) -> int:
     if not 0.0 < args.push_distance <= 0.4:
         raise ValueError(f"--push-distance {args.push_distance} m is outside (0, 0.4] m")
     s = run_push_validation(args.out, push_distance_m=args.push_distance,
+                            backend=backend_of(args), resume=args.resume,
                             progress=not args.no_progress)
     for case in s["cases"]:
         print(f"  y {case['lateral_offset_m']:+.2f} m, theta {case['orientation_deg']:+5.0f} deg: "

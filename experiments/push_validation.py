@@ -10,13 +10,15 @@ the friction coefficient Drake uses between hand and box (Drake's combination
 over the box's footprint (the mean distance of the footprint from its centre). Reported
 per case: the box's final pose relative to the palm in both, their difference, and
 whether the rotation direction agrees (same sign, or both turned less than
-``still_deg``).
+``still_deg``). Each case is one trial of :mod:`experiments.runner` (any backend; kept in
+``trials.jsonl``, so a killed run resumes).
 """
 
 from __future__ import annotations
 
 import json
 from dataclasses import replace
+from functools import lru_cache
 from pathlib import Path
 
 import matplotlib
@@ -24,8 +26,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from tqdm import tqdm  # noqa: E402
 
+from experiments.runner import Backend, Job, TrialStore, map_trials  # noqa: E402
 from models.contact import HAND_MATERIAL  # noqa: E402
 from models.herb.scene import PlanarPose, SceneSpec  # noqa: E402
 from models.herb.tactile import TactileLayout, TactileNoise  # noqa: E402
@@ -56,46 +58,69 @@ def combined_friction(mu_a: float, mu_b: float) -> float:
     return 2 * mu_a * mu_b / (mu_a + mu_b)
 
 
-def run_push_validation(out: Path, *, push_distance_m: float = 0.15, gap_m: float = 0.02,
-                        still_deg: float = 1.0, seed: int = 0,
-                        progress: bool = True) -> dict:
-    """Run every case in Drake and in the planar model; write summary.json and a plot."""
-    from diagrams.herb.straight_push import run_straight_push
-
-    scene = SceneSpec.load("empty")
+@lru_cache(maxsize=2)
+def _planar_model(scene_name: str) -> tuple[SceneSpec, PlanarWorld, float, float]:
+    """The scene, the planar world pushing with Drake's friction and the footprint's
+    uniform-pressure radius, the friction mu and c (m); built once per process."""
+    scene = SceneSpec.load(scene_name)
     mu = combined_friction(HAND_MATERIAL.mu_dynamic, scene.object.material.mu_dynamic)
     c = uniform_pressure_radius(scene.object.footprint())
     world = PlanarWorld.load(scene.object.source or scene.object.name, "medium",
                              pushing=PushingParameters(mu_mean=mu, mu_std=0.0, c_mean_m=c,
                                                        c_std_m=0.0))
+    return scene, world, mu, c
+
+
+def push_case(lateral: float, theta_deg: float, push_distance_m: float, gap_m: float,
+              still_deg: float, seed: int) -> dict:
+    """One case (a trial of the runner): the box ``gap_m`` ahead of the fingertips at
+    lateral offset ``lateral`` (m) and orientation ``theta_deg``, pushed straight for
+    ``push_distance_m`` in Drake and by the planar model; the final poses in the hand's
+    frame, their difference and whether the rotation direction agrees."""
+    from diagrams.herb.straight_push import run_straight_push
+
+    scene, world, _, _ = _planar_model("empty")
     hand = scene.hand_start.as_array()
-    cases = []
-    grid = [(y, t) for t in ORIENTATIONS_DEG for y in LATERAL_OFFSETS_M]
-    for lateral, theta_deg in tqdm(grid, desc="pushes", disable=not progress):
-        theta = np.deg2rad(theta_deg)
-        start = _start_with_gap(world, lateral, theta, gap_m)
-        object_world = compose(hand, start)
-        case_scene = replace(scene, object_pose=PlanarPose(*object_world))
-        outcome = run_straight_push(case_scene, push_distance_m, layout=TactileLayout(),
-                                    noise=TactileNoise.noiseless(), seed=seed, progress=False)
-        palm_final = compose(hand, np.array([push_distance_m, 0.0, 0.0]))
-        drake_rel = compose(inverse(palm_final), np.array(outcome.summary["object_final_pose"]))
-        action = np.array([push_distance_m, 0.0, 0.0])
-        u = np.full((1, world.uniforms_per_step(action)), 0.5)
-        planar_rel = world.step(start[None], action, u)[0]
-        turn_drake = float(wrap_angle(drake_rel[2] - start[2]))
-        turn_planar = float(wrap_angle(planar_rel[2] - start[2]))
-        agree = (np.sign(turn_drake) == np.sign(turn_planar)) or (
-            max(abs(turn_drake), abs(turn_planar)) < np.deg2rad(still_deg))
-        cases.append({
-            "lateral_offset_m": lateral, "orientation_deg": theta_deg,
-            "start_in_hand": start.tolist(),
-            "drake_final_in_hand": drake_rel.tolist(), "planar_final_in_hand": planar_rel.tolist(),
-            "position_difference_m": float(np.linalg.norm(drake_rel[:2] - planar_rel[:2])),
-            "rotation_drake_deg": float(np.rad2deg(turn_drake)),
-            "rotation_planar_deg": float(np.rad2deg(turn_planar)),
-            "rotation_direction_agrees": bool(agree),
-        })
+    theta = np.deg2rad(theta_deg)
+    start = _start_with_gap(world, lateral, theta, gap_m)
+    object_world = compose(hand, start)
+    case_scene = replace(scene, object_pose=PlanarPose(*object_world))
+    outcome = run_straight_push(case_scene, push_distance_m, layout=TactileLayout(),
+                                noise=TactileNoise.noiseless(), seed=seed, progress=False)
+    palm_final = compose(hand, np.array([push_distance_m, 0.0, 0.0]))
+    drake_rel = compose(inverse(palm_final), np.array(outcome.summary["object_final_pose"]))
+    action = np.array([push_distance_m, 0.0, 0.0])
+    u = np.full((1, world.uniforms_per_step(action)), 0.5)
+    planar_rel = world.step(start[None], action, u)[0]
+    turn_drake = float(wrap_angle(drake_rel[2] - start[2]))
+    turn_planar = float(wrap_angle(planar_rel[2] - start[2]))
+    agree = (np.sign(turn_drake) == np.sign(turn_planar)) or (
+        max(abs(turn_drake), abs(turn_planar)) < np.deg2rad(still_deg))
+    return {
+        "lateral_offset_m": lateral, "orientation_deg": theta_deg,
+        "start_in_hand": start.tolist(),
+        "drake_final_in_hand": drake_rel.tolist(), "planar_final_in_hand": planar_rel.tolist(),
+        "position_difference_m": float(np.linalg.norm(drake_rel[:2] - planar_rel[:2])),
+        "rotation_drake_deg": float(np.rad2deg(turn_drake)),
+        "rotation_planar_deg": float(np.rad2deg(turn_planar)),
+        "rotation_direction_agrees": bool(agree),
+    }
+
+
+def run_push_validation(out: Path, *, push_distance_m: float = 0.15, gap_m: float = 0.02,
+                        still_deg: float = 1.0, seed: int = 0, backend: Backend = Backend(),
+                        resume: bool = False, progress: bool = True) -> dict:
+    """Run every case in Drake and in the planar model on the trial runner (each case a
+    trial, kept in ``out/trials.jsonl`` as it finishes; ``resume`` runs only the missing
+    ones); write summary.json and a plot."""
+    _, _, mu, c = _planar_model("empty")
+    settings = {"push_distance_m": push_distance_m, "gap_m": gap_m, "still_deg": still_deg,
+                "seed": seed}
+    store = TrialStore(out, "pushval", settings, resume=resume)
+    jobs = [Job(f"y{y:+.2f}/theta{t:+.0f}", (y, t, push_distance_m, gap_m, still_deg, seed))
+            for t in ORIENTATIONS_DEG for y in LATERAL_OFFSETS_M]
+    cases = map_trials(push_case, jobs, backend=backend, store=store, desc="pushes",
+                       progress=progress)
     diffs = np.array([case["position_difference_m"] for case in cases])
     rot = np.array([[case["rotation_drake_deg"], case["rotation_planar_deg"]] for case in cases])
     summary = {
