@@ -27,6 +27,10 @@ def register(commands) -> None:
     setting_option(run, "--tactile-error-rate", "the arm file's sensor_error_rate",
                    "the tactile system's error rate during contact", type=float)
     mpf_variant_options(run, defaults)
+    setting_option(run, "--outlier-gate", "none (the thesis)",
+                   "both estimators' outlier gate: a reading with evidence log p(o | b+) "
+                   "below this (< 0), which no dual explains, is propagated through "
+                   "unweighed", type=float)
     setting_option(run, "--seed", defaults.seed, "seeds the offset, the sensor noise and "
                                                  "the estimators", type=int)
     run.add_argument("--out", type=Path, required=True,
@@ -68,10 +72,14 @@ def _run(args: argparse.Namespace) -> int:
     from models.arms.spec import ArmSpec
 
     given = vars(args)
+    if "outlier_gate" in given:
+        given["outlier_log_evidence"] = given.pop("outlier_gate")
     settings = replace(ConfigestEpisodeSettings(), **{
         key: given[key] for key in ("arm", "particles", "seed", "tactile_error_rate", "constraints",
-                                "dual_share", "metric")
+                                "dual_share", "metric", "outlier_log_evidence")
         if key in given})
+    if settings.outlier_log_evidence is not None and not settings.outlier_log_evidence < 0:
+        raise ValueError(f"--outlier-gate must be < 0, got {settings.outlier_log_evidence}")
     if settings.tactile_error_rate is not None and not 0 <= settings.tactile_error_rate <= 1:
         raise ValueError(f"--tactile-error-rate must be in [0, 1], got "
                          f"{settings.tactile_error_rate}")

@@ -41,6 +41,10 @@ EPISODE_OPTIONS = (
      "continuous pushing model", {"choices": LAT_DESPOT_MODELS}),
     ("--estimator", EPISODE.estimator,
      "the estimator's filter: manifold (MPF) or conventional (CPF)", {"choices": ESTIMATORS}),
+    ("--outlier-gate", "none (the thesis)",
+     "the estimator's outlier gate: a reading with evidence log p(o | b+) below this (< 0), "
+     "which no dual explains, is propagated through unweighed (the fault bench: -30)",
+     {"type": float}),
     ("--planner-belief", EPISODE.planner_belief,
      "the policy acts on the estimator's belief, or on its own filters as in the thesis "
      "(sec. 6.4.1)", {"choices": PLANNER_BELIEFS}),
@@ -84,8 +88,9 @@ def override_episode(episode: EpisodeSettings, args: argparse.Namespace) -> Epis
     """``episode`` with the episode options given on the command line."""
     episode = overridden(episode, args, {
         "scene": "scene", "object": "object_name", "policy": "policy",
-        "estimator": "estimator", "planner_belief": "planner_belief",
-        "on_infeasible": "on_infeasible", "horizon": "horizon", "particles": "particles",
+        "estimator": "estimator", "outlier_gate": "estimator_outlier_log_evidence",
+        "planner_belief": "planner_belief", "on_infeasible": "on_infeasible",
+        "horizon": "horizon", "particles": "particles",
         "planner": "planner", "lat_despot_seconds": "lat_despot_seconds",
         "lat_despot_model": "lat_despot_model"})
     given = vars(args)

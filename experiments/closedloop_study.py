@@ -81,9 +81,11 @@ def _solution(solver: HandSolveSettings, cache_dir: str | None) -> HandSolution:
 
 
 @lru_cache(maxsize=2)
-def _shared_filter(kind: str, solver: HandSolveSettings, cache_dir: str | None):
-    """One estimator filter per process, shared by its episodes (its manifold is costly)."""
-    return estimator_filter(kind, _solution(solver, cache_dir).model.world)
+def _shared_filter(kind: str, gate: float | None, solver: HandSolveSettings,
+                   cache_dir: str | None):
+    """One estimator filter per process (``gate``: its outlier gate), shared by its
+    episodes (its manifold is costly)."""
+    return estimator_filter(kind, _solution(solver, cache_dir).model.world, gate)
 
 
 def closedloop_trial(settings: ClosedLoopSettings, solver: HandSolveSettings,
@@ -92,7 +94,9 @@ def closedloop_trial(settings: ClosedLoopSettings, solver: HandSolveSettings,
     and the initial belief (1-based)."""
     solution = _solution(solver, cache_dir)
     episode = run_episode(settings.episode_settings(run, trial), solution, progress=False,
-                          filter=_shared_filter(settings.episode.estimator, solver, cache_dir),
+                          filter=_shared_filter(settings.episode.estimator,
+                                                settings.episode.estimator_outlier_log_evidence,
+                                                solver, cache_dir),
                           cache_dir=None if cache_dir is None else Path(cache_dir))
     summary = dict(episode.summary)
     summary["trial"] = trial

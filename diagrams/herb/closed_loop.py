@@ -61,11 +61,14 @@ from planning.pomdp.despot import DespotSettings
 from planning.protocols import Planner
 
 
-def estimator_filter(kind: str, world) -> ParticleFilter:
+def estimator_filter(kind: str, world, outlier_log_evidence: float | None = None
+                     ) -> ParticleFilter:
     """The estimator's filter: the CPF, or the MPF on the analytic contact manifold (built
     here, about 10 s for the small box at the thesis' 1.15 deg; pass the result to several
-    episodes to build it once)."""
-    return make_filter(kind, world, AnalyticManifold(world) if kind == "mpf" else None)
+    episodes to build it once), with the outlier gate ``outlier_log_evidence`` (None: none,
+    the thesis)."""
+    return make_filter(kind, world, AnalyticManifold(world) if kind == "mpf" else None,
+                       outlier_log_evidence=outlier_log_evidence)
 
 
 @dataclass
@@ -168,9 +171,10 @@ def build_closed_loop(settings: EpisodeSettings, solution: HandSolution, scene: 
     builder.Connect(plant.get_contact_results_output_port(), tactile.get_input_port())
     poses = builder.AddSystem(PlanarPoses(plant, herb))
     builder.Connect(plant.get_body_poses_output_port(), poses.get_input_port())
+    filter = filter or estimator_filter(settings.estimator, world,
+                                        settings.estimator_outlier_log_evidence)
     estimator = builder.AddSystem(HandEstimator(
-        filter or estimator_filter(settings.estimator, world), initial, world.sensor_count,
-        seed=settings.seed, travel_m=settings.travel_m))
+        filter, initial, world.sensor_count, seed=settings.seed, travel_m=settings.travel_m))
     builder.Connect(tactile.GetOutputPort("sensor_contact"),
                     estimator.GetInputPort("sensor_contact"))
     builder.Connect(poses.GetOutputPort("palm_pose"), estimator.GetInputPort("palm_pose"))

@@ -67,6 +67,8 @@ class ConfigestEpisodeSettings:
             (:class:`estimation.particles.filters.ManifoldParticleFilter`).
         metric: MPF-Ball's balls and projection in ``joint`` space (sec. 5.2) or in the
             ``kernel`` bandwidths (:mod:`estimation.configuration.manifold`).
+        outlier_log_evidence: both estimators' outlier gate (None: none, the thesis;
+            :class:`estimation.particles.filters.ConventionalParticleFilter`).
         tactile_error_rate: the tactile system's false-negative and in-contact
             false-positive rate (None: the arm file's ``sensor_error_rate``, which is also
             what the estimators assume).
@@ -86,6 +88,7 @@ class ConfigestEpisodeSettings:
     constraints: str = "active"
     dual_share: str = "fixed"
     metric: str = "joint"
+    outlier_log_evidence: float | None = None
     tactile_error_rate: float | None = None
     seed: int = 0
     sim: SimulationConfig = field(default_factory=SimulationConfig)
@@ -145,14 +148,17 @@ def run_configest_episode(settings: ConfigestEpisodeSettings, out: Path, *,
     estimators = {}
     for e, kind in enumerate(ESTIMATORS):
         if kind == "cpf":
-            filt, n = make_filter("cpf", world), settings.particles
+            filt = make_filter("cpf", world,
+                               outlier_log_evidence=settings.outlier_log_evidence)
+            n = settings.particles
         else:
             filt = make_filter("mpf", world, ProjectionManifold(
                 world, strategy="ball", ball_radius_rad=settings.ball_radius_rad,
                 constraints=settings.constraints, metric=settings.metric),
                                dual_particles=settings.dual_particles,
                                mixing_rate=settings.mixing_rate,
-                               dual_share=settings.dual_share)
+                               dual_share=settings.dual_share,
+                               outlier_log_evidence=settings.outlier_log_evidence)
             n = settings.particles - settings.dual_particles
         system = builder.AddSystem(ConfigurationEstimator(
             world, filt, particles=n, seed=settings.seed * 100 + e + 1, period_s=period))

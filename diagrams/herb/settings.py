@@ -49,6 +49,11 @@ class EpisodeSettings:
             particles as they are, with the same bounds; as part ``rel``'s
             ``rel-despot-continuous``).
         estimator: ``mpf`` (manifold particle filter, analytic manifold) or ``cpf``.
+        estimator_outlier_log_evidence: the estimator's outlier gate (beyond the thesis;
+            :class:`~estimation.particles.filters.ConventionalParticleFilter`): a reading
+            whose evidence log p(o | b+) is below it, and which no dual explains, is
+            propagated through without weighing; None (default): every reading weighed,
+            as the thesis. The fault bench uses -30.
         planner_belief: what the policy acts on: ``estimator`` (the estimator system's
             belief, discretised after contact; :class:`~planning.hand.planner.HandPlanner`)
             or ``thesis`` (the policy's own particle filter, then the planning model's
@@ -84,6 +89,7 @@ class EpisodeSettings:
     lat_despot_seconds: float = 2.0
     lat_despot_model: str = "discrete"
     estimator: str = "mpf"
+    estimator_outlier_log_evidence: float | None = None
     planner_belief: str = "estimator"
     belief_mean: tuple[float, float, float] = THESIS_BELIEF_MEANS[1]
     belief_std: tuple[float, float, float] = (0.05, 0.05, float(np.deg2rad(15.0)))
@@ -110,6 +116,10 @@ class EpisodeSettings:
             raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
         if self.estimator not in ESTIMATORS:
             raise ValueError(f"estimator must be one of {ESTIMATORS}, got {self.estimator!r}")
+        if self.estimator_outlier_log_evidence is not None and \
+                not self.estimator_outlier_log_evidence < 0:
+            raise ValueError(f"estimator_outlier_log_evidence must be < 0 or null, got "
+                             f"{self.estimator_outlier_log_evidence}")
         if self.planner_belief not in PLANNER_BELIEFS:
             raise ValueError(f"planner_belief must be one of {PLANNER_BELIEFS}, got "
                              f"{self.planner_belief!r}")

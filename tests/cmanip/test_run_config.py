@@ -61,6 +61,7 @@ def test_options_override_the_file_and_defaults_are_the_settings_own(tmp_path):
     ("episode:\n  partcles: 10\n", "episode.partcles"),
     ("solver:\n  solve_seconds: -1\n", "solver"),
     ("episode:\n  belief_mean: [0.3, 0.0]\n", "episode.belief_mean"),
+    ("episode:\n  estimator_outlier_log_evidence: 2.0\n", "episode"),
 ])
 def test_a_bad_config_names_the_file_and_field(tmp_path, capsys, text, field):
     path = tmp_path / "bad.yaml"
@@ -70,6 +71,19 @@ def test_a_bad_config_names_the_file_and_field(tmp_path, capsys, text, field):
     assert str(path) in str(err.value) and field in str(err.value)
     assert main(["run", "--config", str(path), "--out", str(tmp_path / "o")]) == 2
     assert str(path) in capsys.readouterr().err
+
+
+def test_the_estimators_outlier_gate_is_a_setting_and_reaches_the_filter(tmp_path):
+    from diagrams.herb.closed_loop import estimator_filter
+    from models.planar.world import PlanarWorld
+
+    path = tmp_path / "gated.yaml"
+    path.write_text("episode:\n  estimator_outlier_log_evidence: -30\n")
+    gate = load_config(RunConfig, path).episode.estimator_outlier_log_evidence
+    assert gate == -30.0
+    world = PlanarWorld.load("small_box", "medium")
+    assert estimator_filter("cpf", world, gate).outlier_log_evidence == -30.0
+    assert estimator_filter("cpf", world).outlier_log_evidence is None
 
 
 def test_the_episode_and_the_model_must_push_the_same_object(tmp_path):

@@ -57,6 +57,11 @@ def test_configest_run_refuses_bad_input_before_building(tmp_path, capsys):
     assert "--tactile-error-rate must be in [0, 1]" in capsys.readouterr().err
     assert main(["configest", "run", "--particles", "5", "--out", str(tmp_path)]) == 2
     assert "--particles must exceed" in capsys.readouterr().err
+    assert main(["configest", "run", "--outlier-gate", "3", "--out", str(tmp_path)]) == 2
+    assert "--outlier-gate must be < 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as usage:
+        main(["configest", "run", "--metric", "bogus", "--out", str(tmp_path)])
+    assert usage.value.code == 2
 
 
 def test_the_beyond_thesis_variants_are_settings_and_bad_ones_clear_errors(tmp_path, capsys):
