@@ -7,7 +7,8 @@ Parts: ``malformed`` (:mod:`cmanip.malformed`), ``faults``
 (the robust filters, with the outlier gate; ``faults_recovered_plain``: the filters as
 the thesis has them),
 ``budget_overrun_ms_p99`` (the worse planner's p99 overrun under load) and
-``memory_growth_mb_per_1000_steps`` (the worse of the two long runs).
+``memory_growth_mb_per_1000_steps`` (the worse of the two long runs) and
+``meshcat_connections_leaked`` (of :data:`MESHCAT_SESSIONS` sessions with a client each).
 """
 
 from __future__ import annotations
@@ -15,6 +16,9 @@ from __future__ import annotations
 from pathlib import Path
 
 ROBUSTNESS_PARTS = ("malformed", "faults", "budgets", "memory")
+
+MESHCAT_SESSIONS = 20
+"""Meshcat servers opened, used and dropped in turn by the ``memory`` part."""
 
 
 def measure_robustness(parts, *, limit_per_kind: int | None = None, fault_trials: int = 3,
@@ -90,7 +94,7 @@ def _budgets(decisions: int, budget_s: float, cache_dir, seed: int, progress: bo
 
 
 def _memory(decisions: int, updates: int, seed: int, progress: bool) -> dict:
-    from experiments.load_bench import closed_loop_memory, smoother_memory
+    from experiments.load_bench import closed_loop_memory, meshcat_sessions, smoother_memory
 
     memory = {"closed_loop": closed_loop_memory(decisions, seed=seed, progress=progress),
               "smoother": smoother_memory(updates, seed=seed, progress=progress)}
@@ -98,6 +102,14 @@ def _memory(decisions: int, updates: int, seed: int, progress: bool) -> dict:
         print(f"memory {name}: {entry['rss_mb_start']:.0f} -> {entry['rss_mb_end']:.0f} MB, "
               f"growth {entry['growth_mb_per_1000']:+.2f} MB per 1000 steps; open files "
               f"{entry['open_files_before']} -> {entry['open_files_after']}")
-    return {"memory": memory,
+    meshcat = meshcat_sessions(MESHCAT_SESSIONS, progress=progress)
+    b, a = meshcat["before"], meshcat["after"]
+    print(f"Meshcat: {meshcat['sessions']} sessions, {meshcat['clients_connected']} clients "
+          f"connected, {meshcat['connections_left_open']} connections left open; threads "
+          f"{b['threads']} -> {a['threads']}, open files {b['open_files']} -> "
+          f"{a['open_files']}, listening sockets {b['listening_sockets']} -> "
+          f"{a['listening_sockets']}")
+    return {"memory": {**memory, "meshcat": meshcat},
             "memory_growth_mb_per_1000_steps": max(e["growth_mb_per_1000"]
-                                                   for e in memory.values())}
+                                                   for e in memory.values()),
+            "meshcat_connections_leaked": meshcat["connections_left_open"]}

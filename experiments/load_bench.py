@@ -19,12 +19,23 @@ jumps back at each replay, which the camera cost's Huber kernel absorbs). The gr
 the least-squares slope of RSS against steps after the first fifth (warm-up: compiled
 kernels, caches), in MB per 1000 steps; open file descriptors are counted before and
 after.
+
+**Meshcat sessions.** ``sessions`` Meshcat servers one after another, as runs with
+``--meshcat`` or a notebook make them: each opens on localhost, takes a browser-like
+client (a WebSocket handshake over a plain socket: Drake counts it in
+``GetNumActiveConnections``), draws and records, writes its ``StaticHtml``, loses the
+client and is dropped. Counted: connections still open after their client left, and the
+process' threads, file descriptors and listening TCP sockets before and after (before:
+after one warm-up session, whose one-time costs are not a leak).
 """
 
 from __future__ import annotations
 
+import base64
+import gc
 import multiprocessing
 import os
+import socket
 import time
 from pathlib import Path
 
@@ -219,3 +230,74 @@ def smoother_memory(updates: int, *, sample_every: int = 250, seed: int = 0,
     return {"updates": updates, "rss_mb_start": float(rss[0]), "rss_mb_end": float(rss[-1]),
             "growth_mb_per_1000": growth_mb_per_1000(steps, rss),
             "open_files_before": files_before, "open_files_after": _open_files()}
+
+
+def _websocket_client(port: int) -> socket.socket:
+    """A client connected to the Meshcat at ``localhost:port`` by a WebSocket handshake
+    (RFC 6455; the standard library suffices, the frames that follow are not read)."""
+    client = socket.create_connection(("localhost", port), timeout=5.0)
+    key = base64.b64encode(os.urandom(16)).decode()
+    client.sendall((f"GET / HTTP/1.1\r\nHost: localhost:{port}\r\nUpgrade: websocket\r\n"
+                    f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
+                    "Sec-WebSocket-Version: 13\r\n\r\n").encode())
+    answer = client.recv(4096)
+    if not answer.startswith(b"HTTP/1.1 101"):
+        client.close()
+        raise RuntimeError(f"Meshcat refused the WebSocket handshake: {answer[:60]!r}")
+    return client
+
+
+def _wait_for(condition, seconds: float = 5.0) -> bool:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.01)
+    return condition()
+
+
+def _process_handles() -> dict:
+    process = psutil.Process()
+    return {"threads": process.num_threads(), "open_files": _open_files(),
+            "listening_sockets": sum(1 for c in process.net_connections("tcp")
+                                     if c.status == psutil.CONN_LISTEN)}
+
+
+def meshcat_sessions(sessions: int, *, progress: bool = True) -> dict:
+    """Open, use and drop ``sessions`` Meshcat servers in turn (module docstring)."""
+    from pydrake.geometry import Box, Rgba
+    from pydrake.math import RigidTransform
+
+    from diagrams.meshcat import local_meshcat
+
+    def session(k: int) -> tuple[bool, bool]:
+        """(the client was counted, its connection was left open)."""
+        meshcat = local_meshcat()
+        client = _websocket_client(meshcat.port())
+        counted = _wait_for(lambda: meshcat.GetNumActiveConnections() == 1)
+        meshcat.SetObject("/box", Box(0.1, 0.1, 0.1), Rgba(0.2, 0.4, 0.8, 1.0))
+        meshcat.SetTransform("/box", RigidTransform([0.0, 0.0, 0.01 * k]))
+        meshcat.StaticHtml()
+        client.close()
+        left_open = not _wait_for(lambda: meshcat.GetNumActiveConnections() == 0)
+        return counted, left_open
+
+    def dropped(outcome: tuple[bool, bool]) -> tuple[bool, bool]:
+        gc.collect()  # the session's server is gone once its frame is
+        return outcome
+
+    bar = tqdm(total=sessions, desc="Meshcat sessions", disable=not progress, leave=False)
+    # the first server's one-time costs (threads, libraries) and the bar's thread apart
+    dropped(session(-1))
+    before, rss_before = _process_handles(), _rss_mb()
+    outcomes = []
+    for k in range(sessions):
+        outcomes.append(dropped(session(k)))
+        bar.update()
+    bar.close()
+    connected = sum(c for c, _ in outcomes)
+    left_open = sum(o for _, o in outcomes)
+    after = _process_handles()
+    return {"sessions": sessions, "clients_connected": connected,
+            "connections_left_open": left_open, "before": before, "after": after,
+            "rss_mb_before": rss_before, "rss_mb_after": _rss_mb()}

@@ -14,7 +14,12 @@ from experiments.fault_bench import (
     inject,
     inject_smoother,
 )
-from experiments.load_bench import BusyCore, _budget_report, growth_mb_per_1000
+from experiments.load_bench import (
+    BusyCore,
+    _budget_report,
+    growth_mb_per_1000,
+    meshcat_sessions,
+)
 from experiments.mpf_study import FilterSpec
 
 
@@ -77,3 +82,10 @@ def test_busy_core_runs_a_process_and_stops_it():
         time.sleep(0.2)
         assert busy._process.is_alive()
     assert not busy._process.is_alive()
+
+
+def test_meshcat_sessions_count_their_clients_and_leave_nothing_open():
+    report = meshcat_sessions(3, progress=False)
+    assert report["clients_connected"] == 3  # the handshake is a connection Drake counts
+    assert report["connections_left_open"] == 0
+    assert report["after"] == report["before"]  # threads, descriptors, listening sockets
