@@ -248,6 +248,7 @@ def _websocket_client(port: int) -> socket.socket:
 
 
 def _wait_for(condition, seconds: float = 5.0) -> bool:
+    """Whether ``condition()`` became true within ``seconds`` (polled every 10 ms)."""
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
         if condition():
@@ -257,6 +258,7 @@ def _wait_for(condition, seconds: float = 5.0) -> bool:
 
 
 def _process_handles() -> dict:
+    """This process' threads, open file descriptors and listening TCP sockets."""
     process = psutil.Process()
     return {"threads": process.num_threads(), "open_files": _open_files(),
             "listening_sockets": sum(1 for c in process.net_connections("tcp")
