@@ -29,10 +29,10 @@ import numpy as np
 
 from estimation.configuration.belief import joint_rmse
 from estimation.configuration.manifold import (
-    METRICS,
     ExplicitTwoLinkManifold,
     ProjectionManifold,
     ProjectionStats,
+    check_metric,
 )
 from estimation.configuration.projection import CONSTRAINTS, METHODS
 from estimation.particles.belief import ParticleBelief
@@ -100,12 +100,7 @@ class ConfigestSettings:
         if self.constraints not in CONSTRAINTS:
             raise ValueError(f"constraints must be one of {', '.join(CONSTRAINTS)}, got "
                              f"{self.constraints!r}")
-        if self.metric not in METRICS:
-            raise ValueError(f"metric must be one of {', '.join(METRICS)}, got "
-                             f"{self.metric!r}")
-        if self.metric == "kernel" and self.ball_radius_rad is not None:
-            raise ValueError("ball_radius_rad is the joint metric's; the kernel metric's "
-                             "balls are three bandwidths")
+        check_metric(self.metric, self.ball_radius_rad)
         if self.dual_share not in DUAL_SHARES:
             raise ValueError(f"dual_share must be one of {', '.join(DUAL_SHARES)}, got "
                              f"{self.dual_share!r}")

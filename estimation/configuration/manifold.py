@@ -127,12 +127,7 @@ class ProjectionManifold:
         if self.constraints not in CONSTRAINTS:
             raise ValueError(f"unknown constraint set {self.constraints!r}; choose from "
                              f"{', '.join(CONSTRAINTS)}")
-        if self.metric not in METRICS:
-            raise ValueError(f"unknown metric {self.metric!r}; choose from "
-                             f"{', '.join(METRICS)}")
-        if self.metric == "kernel" and self.ball_radius_rad is not None:
-            raise ValueError("the kernel metric's balls are BALL_BANDWIDTHS bandwidths: "
-                             "ball_radius_rad is for the joint metric")
+        check_metric(self.metric, self.ball_radius_rad)
 
     def sample(self, observation: np.ndarray, n: int, *, rng: np.random.Generator,
                predicted: ParticleBelief | None = None) -> np.ndarray:
@@ -197,6 +192,16 @@ class ProjectionManifold:
         """(dof,) the prior's kernel bandwidths (rad; Silverman's, as the dual weights')."""
         return silverman_bandwidth(np.asarray(predicted.states), predicted.weights,
                                    predicted.angular)
+
+
+def check_metric(metric: str, ball_radius_rad: float | None) -> None:
+    """Raise ValueError unless ``metric`` is one of :data:`METRICS` and a fixed r_b comes
+    only with the joint metric (the kernel metric's balls are three bandwidths)."""
+    if metric not in METRICS:
+        raise ValueError(f"unknown metric {metric!r}; choose from {', '.join(METRICS)}")
+    if metric == "kernel" and ball_radius_rad is not None:
+        raise ValueError("the kernel metric's balls are BALL_BANDWIDTHS bandwidths: "
+                         "ball_radius_rad is for the joint metric")
 
 
 def union_of_balls(centers: np.ndarray, radius: float, n: int, *,
