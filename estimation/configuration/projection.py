@@ -5,6 +5,9 @@ The contact manifold of an observation o is the zero set of
 sensor i to the environment (eq. 5.3), with gradient ``grad F(c)^T J_c(q)`` (eq. 5.4).
 A seed is projected by root finding on ``F_o(q) = 1/2 |f_o(q)|^2`` and accepted when every
 ``|f_i| <= eps_proj``; a seed that does not get there in the iteration budget is a failure.
+For an arm that presses into compliant contact (its file's ``press_depth_m`` p > 0) a
+touching sensor lies anywhere from p deep to the surface, so ``f_i`` is its distance to
+``[-p, 0]`` (zero, with a zero gradient, inside); with p = 0 that is eq. 5.1 itself.
 
 Two root finders, batched over seeds:
 
@@ -121,6 +124,7 @@ def project(world: ArmWorld, seeds: np.ndarray, active: np.ndarray, *, method: s
     iterations = np.full(len(q), budget)
     running = np.ones(len(q), dtype=bool)
     clear, margin = _clearance_rows(world, active, eps_proj_m, constraints)
+    press = world.spec.press_depth_m
     eye = np.eye(len(active) + len(clear))[None]
     # the metric's shape is what steers; its mean is kept at 1 so that the damping mu and
     # the trust region mean what they do in joint space
@@ -131,6 +135,9 @@ def project(world: ArmWorld, seeds: np.ndarray, active: np.ndarray, *, method: s
         if index.size == 0:
             break
         f, J = world.sensor_distances(q[index], gradient=True, sensors=active)
+        if press > 0:  # a pressing arm's sensor touches anywhere in [-press, 0]
+            f = f - np.clip(f, -press, 0.0)
+            J = J * (f != 0)[..., None]
         done = np.abs(f).max(axis=1) <= eps_proj_m
         if len(clear):
             d, g = world.ball_distances(q[index], gradient=True, balls=clear)
@@ -160,10 +167,12 @@ def _clearance_rows(world: ArmWorld, active: np.ndarray, eps_proj_m: float,
                     constraints: str) -> tuple[np.ndarray, np.ndarray]:
     """The balls of the one-sided rows of ``full`` and the clearance (m) each must keep:
     the inactive sensors' balls the contact tolerance plus eps_proj (so that they are
-    accepted clear of the tolerance), the body's none (out of penetration)."""
+    accepted clear of the tolerance), the body's minus the arm's press depth (out of
+    penetration, as far as a pressing arm gets out)."""
     if constraints == "active":
         return np.empty(0, dtype=int), np.empty(0)
     owner = world.sensor_of_ball
     clear = np.flatnonzero(~np.isin(owner, active))
-    margin = np.where(owner[clear] >= 0, world.spec.contact_tolerance_m + eps_proj_m, 0.0)
+    margin = np.where(owner[clear] >= 0, world.spec.contact_tolerance_m + eps_proj_m,
+                      -world.spec.press_depth_m)
     return clear, margin

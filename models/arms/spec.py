@@ -26,7 +26,11 @@ any sensor touches, the probability that a reading is flipped; the thesis gives
 none for ch. 5, we choose 0.001 by default), ``free_false_positive_rate`` (the probability
 of a contact reading while no sensor touches; default 0, the thesis' "perfectly
 discriminative" sensors of sec. 4.4.1), ``contact_tolerance_m`` (a sensor is active
-when its signed distance is at most this), ``start_rad`` (the true start configuration)
+when its signed distance is at most this), ``press_depth_m`` (how deep a pressing arm
+sinks into what it touches: the thesis' rigid model has 0; a simulated or real arm under
+stiff position control pressing into compliant contact sits deeper, and its model must
+let it, or every reading of two sensors touching at once is one the model cannot make),
+``start_rad`` (the true start configuration)
 and ``trajectory`` (commanded joint motion: ``[{to_rad: [...], steps: N}, ...]``, moved
 in N equal steps from where the last segment ended).
 """
@@ -121,6 +125,8 @@ class ArmSpec:
         free_false_positive_rate: probability of a contact reading, per sensor and step,
             while no sensor touches.
         contact_tolerance_m: a sensor is active when its signed distance is at most this.
+        press_depth_m: the depth (m) to which the projection out of penetration lets the
+            arm's balls sink into what they press on (0: rigid, the thesis).
         start_rad: true start configuration (rad).
         trajectory: the commanded motion of the experiment.
         source: the file (for messages).
@@ -143,6 +149,7 @@ class ArmSpec:
     scene: str | Path = ""
     obstacles: tuple[ObstacleSpec, ...] = ()
     body_links: tuple[str, ...] = ()
+    press_depth_m: float = 0.0
     source: str = ""
 
     @property
@@ -214,6 +221,7 @@ class ArmSpec:
                                                    max=0.5),
             contact_tolerance_m=fields.number("contact_tolerance_m", 0.001, min=1e-6,
                                               max=0.1),
+            press_depth_m=fields.number("press_depth_m", 0.0, min=0.0, max=0.05),
             start_rad=start, trajectory=tuple(trajectory), source=str(path), **extra)
         fields.done()
         return spec

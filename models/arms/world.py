@@ -29,8 +29,8 @@ filter needs some diffusion, and the authors' demo uses a 0.01 rad random walk).
 any sensor touches, each reading is flipped with probability ``sensor_error_rate``, and
 while none touches, a reading is on with probability ``free_false_positive_rate`` (the
 thesis' model of sec. 4.4.1: "perfectly discriminative", wrong only during contact).
-The likelihood also counts each ball deeper than ``PENETRATION_TOLERANCE_M`` inside an
-obstacle as one contradicted reading: such a state
+The likelihood also counts each ball deeper than ``PENETRATION_TOLERANCE_M`` (beyond the
+arm's ``press_depth_m``) inside an obstacle as one contradicted reading: such a state
 is (almost) impossible, and dual samples projected onto a contact can land there.
 """
 
@@ -202,7 +202,9 @@ class ArmWorld:
     def project_free(self, q: np.ndarray) -> np.ndarray:
         """The frictionless projection out of inter-penetration (thesis sec. 5.4.1).
 
-        Gauss-Newton on ``1/2 sum_j min(0, d_j(q))^2`` over the arm's balls: each step
+        Gauss-Newton on ``1/2 sum_j min(0, d_j(q) + p)^2`` over the arm's balls, p the
+        arm file's ``press_depth_m`` (0, the thesis' rigid model, unless the arm presses
+        into compliant contact): each step
         solves ``(J^T J + lambda I) dq = -J^T r`` with the penetrating balls' rows, so the
         arm moves along the contact normals only (no friction).
 
@@ -210,10 +212,10 @@ class ArmWorld:
             q: (K, dof) configurations (rad), possibly penetrating.
 
         Returns:
-            (K, dof) configurations with no ball deeper than ``FREE_TOLERANCE_M`` where the
-            iterations reached it. The last answer is kept (read-only): a filter update asks
-            for the same predicted particles' projection in its likelihood and its
-            free-space test.
+            (K, dof) configurations with no ball deeper than the press depth plus
+            ``FREE_TOLERANCE_M`` where the iterations reached it. The last answer is kept
+            (read-only): a filter update asks for the same predicted particles' projection
+            in its likelihood and its free-space test.
         """
         q = np.asarray(q, dtype=float)
         key = (q.shape, q.tobytes())
@@ -228,13 +230,14 @@ class ArmWorld:
         """:meth:`project_free` without the memo."""
         q = self.normalise(np.array(q, dtype=float))
         eye = np.eye(self.dof)[None]
+        press = self.spec.press_depth_m
         d, _ = self.ball_distances(q)
-        deep = np.flatnonzero(d.min(axis=1) < -FREE_TOLERANCE_M)
+        deep = np.flatnonzero(d.min(axis=1) + press < -FREE_TOLERANCE_M)
         for _ in range(FREE_ITERATIONS):
             if deep.size == 0:
                 break
             d, g = self.ball_distances(q[deep], gradient=True)
-            r = np.minimum(d, 0.0)
+            r = np.minimum(d + press, 0.0)
             still = r.min(axis=1) < -FREE_TOLERANCE_M
             deep, r, g = deep[still], r[still], g[still] * (r[still] < 0)[..., None]
             A = np.einsum("kbi,kbj->kij", g, g) + DAMPING * eye
@@ -280,7 +283,8 @@ class ArmWorld:
         log_p = np.where(touching, (self.sensor_count - wrong) * np.log1p(-e)
                          + wrong * np.log(e),
                          lit * np.log(f0) + (self.sensor_count - lit) * np.log1p(-f0))
-        return log_p + (d < -PENETRATION_TOLERANCE_M).sum(axis=1) * np.log(e)
+        deep = d < -(PENETRATION_TOLERANCE_M + self.spec.press_depth_m)
+        return log_p + deep.sum(axis=1) * np.log(e)
 
     def sample_observation(self, states: np.ndarray, u: np.ndarray) -> np.ndarray:
         """(K, S) readings at the states' actual configurations: each flipped when ``u``

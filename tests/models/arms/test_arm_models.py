@@ -81,6 +81,34 @@ def test_projection_out_of_penetration_leaves_no_ball_inside():
     np.testing.assert_allclose(free[untouched], q[untouched])
 
 
+def test_a_pressing_arm_sinks_as_deep_as_its_press_depth_and_no_deeper(tmp_path):
+    from estimation.configuration.projection import project
+
+    rigid = world("3dof")
+    pressing = tmp_path / "pressing.yaml"
+    pressing.write_text(open(rigid.spec.source).read() + "press_depth_m: 0.01\n")
+    soft = ArmWorld(ArmSpec.load(pressing))
+    run = soft.simulate(rng=np.random.default_rng(0))
+    t = int(np.flatnonzero(run.contacts.any(axis=1))[0])
+    active = np.flatnonzero(run.contacts[t])
+    seeds = soft.normalise(run.q_true[t] + np.random.default_rng(1).normal(0, 0.05, (40, 3)))
+    # the lit sensors on the surface, then pushed 2 cm into it along their gradient
+    touching = project(rigid, seeds, active[:1]).states
+    f, J = soft.sensor_distances(touching, gradient=True, sensors=active[:1])
+    inside = touching - J[:, 0] * ((f[:, 0] + 0.02) / (J[:, 0] ** 2).sum(axis=1))[:, None]
+    assert (soft.sensor_distances(inside, sensors=active[:1])[0] < -0.015).mean() > 0.5
+    deepest = soft.ball_distances(soft.project_free(inside))[0].min(axis=1)
+    assert deepest.min() > -0.01 - 1e-4 and (deepest < -0.009).mean() > 0.5
+    assert rigid.ball_distances(rigid.project_free(inside))[0].min() > -1e-4
+    # a sensor pressed within the depth is on the manifold of its reading
+    result = project(soft, seeds, active)
+    f = soft.sensor_distances(result.states[result.success], sensors=active)[0]
+    assert result.success.mean() > 0.5 and (f >= -0.01 - 1e-3).all() and (f <= 1e-3).all()
+    pressing.write_text(open(rigid.spec.source).read() + "press_depth_m: -0.01\n")
+    with pytest.raises(ConfigError, match="press_depth_m"):
+        ArmSpec.load(pressing)
+
+
 def test_the_simulated_arm_touches_and_the_readings_follow_the_geometry():
     w = world("2dof")
     run = w.simulate(rng=np.random.default_rng(0))
