@@ -137,6 +137,16 @@ def belief_nodes(root):
             stack.extend(q.children.values())
 
 
+def default_is_better(l0: float, action_lowers) -> bool:
+    """Whether the root's default policy (value ``l0``) beats every action's lower bound:
+    the search found no better policy than the default, and the root's lower bound
+    ``max(l0, max_a l(b0, a))`` is the default's, so its action is the answer (JAIR's
+    backup; the reference implementation's ``DESPOT::OptimalAction`` takes the root's
+    default move then). Without it, a shallow search whose children's lower bounds fall
+    below l0 by the noise of K scenarios answers with whichever child fell least."""
+    return bool(l0 > np.max(action_lowers))
+
+
 def compiled_core(functions: tuple):
     """The compiled trial and backup for a model's kernel functions, built once per
     process."""
@@ -418,7 +428,9 @@ class Despot:
         if grow_after:  # for the next decision, outside this one's search budget
             tree.grow(s.scenarios * self._actions)
         ranking = self._array_ranking(tree)
-        if ranking is not None:
+        qs = tree.action_range(0)
+        if ranking is not None and not default_is_better(tree.l0[0],
+                                                         tree.q_lower[qs.start:qs.stop]):
             action = ranking[0]
         else:
             actions = action_array(self._default(states[live] if live.any() else states),
@@ -648,9 +660,11 @@ class Despot:
     def _best_action(self, root: _BeliefNode) -> int:
         """The action of largest lower bound (ties: of largest upper bound); the default
         policy's (the most frequent over the root's scenarios) when the root is not
-        expanded or its bounds are not finite."""
+        expanded, its bounds are not finite, or the default policy's value l0 is above
+        every action's lower bound (:func:`default_is_better`)."""
         ranking = self.ranking(root)
-        if ranking is not None:
+        if ranking is not None and not default_is_better(
+                root.l0, [q.lower for q in root.children]):
             return ranking[0]
         live = root.states[~root.terminal] if (~root.terminal).any() else root.states
         actions = action_array(self._default(live), len(live))
