@@ -38,6 +38,7 @@ from cmanip.run import add_episode_options, override_episode, override_solver, s
 from diagrams.herb.settings import POLICIES
 from experiments.closedloop_study import ClosedLoopSettings
 from experiments.handplan_study import PARTS as HANDPLAN_PARTS
+from experiments.latdespot_scenes import POLICIES as LAT_POLICIES
 from experiments.latdespot_scenes import SCENES
 from experiments.latdespot_study import CONTINUOUS_ROLLOUTS
 from experiments.latdespot_study import PARTS as LATDESPOT_PARTS
@@ -239,7 +240,8 @@ def _register_latdespot(studies) -> None:
     setting_option(lat, "--scene", "all", "the scenes of parts scenes and bound (built-in "
                    f"name or YAML path, or all: {', '.join(scenes.scenes)})")
     setting_option(lat, "--policies", "all", "the policies of part scenes (all: "
-                   f"{', '.join(scenes.policies)})", nargs="+", choices=[*scenes.policies, "all"])
+                   f"{', '.join(scenes.policies)}; lat-despot-continuous by name, about a "
+                   "second a decision)", nargs="+", choices=[*LAT_POLICIES, "all"])
     setting_option(lat, "--lat-despot-trials", scenes.lat_despot_trials,
                    "DESPOT trials per Lat-DESPOT decision (0: the wall-clock cap alone)",
                    type=int)

@@ -53,17 +53,19 @@ def plot_rel(summary: dict, out: Path) -> None:
 
 
 SCENE_LABELS = {"rel-qmdp": "RM", "rel-sarsop": "RS", "rel-despot": "RD", "lift-qmdp": "LM",
-                "lift-sarsop": "LS", "lat-despot": "LD", "lat-despot-pb": "LD-pb"}
+                "lift-sarsop": "LS", "lat-despot": "LD", "lat-despot-pb": "LD-pb",
+                "lat-despot-continuous": "LD-c"}
 SCENE_COLORS = {"rel-qmdp": "0.55", "rel-sarsop": "tab:blue", "rel-despot": "tab:orange",
                 "lift-qmdp": "0.3", "lift-sarsop": "tab:cyan", "lat-despot": "tab:red",
-                "lat-despot-pb": "tab:purple"}
+                "lat-despot-pb": "tab:purple", "lat-despot-continuous": "tab:green"}
 
 
 def plot_scenes(summary: dict, out: Path) -> None:
     """``lat_scenes.png``: the thesis' Fig. 7.4, one column per scene: (top) the value on
     the discrete Lat-POMDP (axis inverted as the thesis'), (middle) the success rate on the
     continuous one with 95 % Wilson intervals, (bottom) the fraction of episodes that took
-    an infeasible action; and ``lattice_<scene>.png`` for each saved lattice."""
+    an infeasible action; and ``lattice_<scene>.png`` for each saved lattice. A policy
+    valued on the continuous model (``value_model``) has a hatched value bar."""
     scenes = summary["scenes"]
     fig, axes = plt.subplots(3, len(scenes), figsize=(3.2 * len(scenes), 7.5),
                              sharey="row", squeeze=False)
@@ -72,8 +74,11 @@ def plot_scenes(summary: dict, out: Path) -> None:
         x = np.arange(len(names))
         colors = [SCENE_COLORS.get(n, "0.4") for n in names]
         value = [entries[n]["discounted_value"] for n in names]
-        axes[0, col].bar(x, value, yerr=[entries[n]["discounted_value_ci95"] for n in names],
-                         color=colors, capsize=3)
+        bars = axes[0, col].bar(x, value, color=colors, capsize=3,
+                                yerr=[entries[n]["discounted_value_ci95"] for n in names])
+        for bar, name in zip(bars, names, strict=True):
+            if entries[name].get("value_model") == "continuous":
+                bar.set_hatch("//")
         rate = np.array([entries[n]["success_rate"] for n in names])
         lo = rate - np.array([entries[n]["success_rate_ci95"][0] for n in names])
         hi = np.array([entries[n]["success_rate_ci95"][1] for n in names]) - rate
@@ -83,7 +88,8 @@ def plot_scenes(summary: dict, out: Path) -> None:
         for row in range(3):
             axes[row, col].set_xticks(x, [SCENE_LABELS.get(n, n) for n in names], fontsize=7)
     axes[0, 0].invert_yaxis()
-    axes[0, 0].set_ylabel("value, discrete model\n(inverted: shorter is better)")
+    axes[0, 0].set_ylabel("value, discrete model (hatched:\ncontinuous; inverted: "
+                          "shorter is better)")
     axes[1, 0].set_ylabel("Pr(goal), continuous")
     axes[1, 0].set_ylim(0, 1)
     axes[2, 0].set_ylabel("Pr(infeasible action)")

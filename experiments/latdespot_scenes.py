@@ -15,9 +15,15 @@ moves), on the scene's configuration lattice (1 cm, the problem's step;
   rollouts (thesis sec. 7.2);
 - ``lat-despot-pb`` (beyond the thesis, its sec. 7.4): the same with the point-based
   solver's bounds: its corner values above (the sawtooth upper bound at each state) and
-  Lift-SARSOP rollouts below.
+  Lift-SARSOP rollouts below;
+- ``lat-despot-continuous`` (beyond the thesis; not in the default set, its decisions take
+  about a second): Lat-DESPOT planning on the continuous Lat-POMDP itself (the planar
+  pushing model on the lattice, the pose's exact goal reward; the same Rel-QMDP bound and
+  Lift-QMDP rollouts from each scenario's cell), the object tracked by the manifold
+  particle filter (thesis Alg. 4.2, analytic manifold), as part ``rel``'s
+  ``rel-despot-continuous``. It runs on the continuous model only (its value there).
 
-Every policy plans on the discrete model and tracks the discrete belief (thesis sec.
+Every other policy plans on the discrete model and tracks the discrete belief (thesis sec.
 6.4.1); DESPOT's scenarios are drawn from it. The initial belief is part ``rel``'s
 Gaussian conditioned on the object not touching an obstacle at the start (an object does
 not start inside the clutter; unconditioned, 11 % of it does in ``right_obstacles`` and
@@ -50,12 +56,15 @@ Lat-POMDP (Theorem 7.2: the first bounds the second).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
+from estimation.hand.manifolds import AnalyticManifold
+from estimation.particles.belief import ParticleBelief
+from estimation.particles.factory import make_filter
 from experiments.latdespot_study import (
     RelSettings,
     build_rel_problem,
@@ -63,6 +72,7 @@ from experiments.latdespot_study import (
 from experiments.runner import Backend, Job, TrialStore, map_trials
 from experiments.statistics import half_width, wilson_interval
 from models.herb.scene import SceneSpec
+from models.planar.observation import observation_reading
 from models.planar.polygon import pose_points
 from planning.hand.model import HandPOMDP
 from planning.hand.policy import qmdp_vectors
@@ -80,7 +90,12 @@ from planning.pomdp.tabular import belief_update
 
 SCENES = ("empty", "right_obstacles", "left_obstacles", "cul_de_sac")
 POLICIES = ("rel-qmdp", "rel-sarsop", "rel-despot", "lift-qmdp", "lift-sarsop",
-            "lat-despot", "lat-despot-pb")
+            "lat-despot", "lat-despot-pb", "lat-despot-continuous")
+#: The study's policies unless told otherwise (``lat-despot-continuous`` is asked for by
+#: name: a 200-trial study of it would take a day on two cores).
+DEFAULT_POLICIES = POLICIES[:-1]
+#: Policies that plan on the continuous model and are evaluated on it alone.
+CONTINUOUS_ONLY = ("lat-despot-continuous",)
 MODELS = ("discrete", "continuous")
 EPISODE_STREAM = 23
 
@@ -98,7 +113,7 @@ class SceneSettings:
     """
 
     scenes: tuple[str, ...] = SCENES
-    policies: tuple[str, ...] = POLICIES
+    policies: tuple[str, ...] = DEFAULT_POLICIES
     lat_despot_trials: int | None = 30
     lat_despot_seconds: float = 5.0
     lattice_x_range_m: tuple[float, float] = (-0.10, 0.40)
@@ -215,14 +230,34 @@ class SceneEpisodes:
         self.lift = {"lift-qmdp": LiftPolicy(q, self.lattice),
                      "lift-sarsop": LiftPolicy(solved.sarsop, self.lattice)}
         self.lat = {"lat-despot": LatDespotPlanner(self.models["discrete"], lat_settings),
-                    "lat-despot-pb": LatDespotPlanner(pb, lat_settings)}
+                    "lat-despot-pb": LatDespotPlanner(pb, lat_settings),
+                    "lat-despot-continuous": LatDespotPlanner(
+                        self.models["continuous"],
+                        replace(lat_settings, max_trials=rel.continuous_despot_trials))}
+        self.filter = make_filter("mpf", model.world, AnalyticManifold(model.world))
         self.rel_despot = rel_despot
+        self.vectors_m = model.spec.action_vectors()
         self.initial = discrete.free_at_start(initial)
 
-    def decide(self, policy: str, point: int, belief: np.ndarray,
+    def free_particles(self, rng: np.random.Generator) -> ParticleBelief:
+        """The particle belief of ``lat-despot-continuous``: ``despot_particles`` poses of
+        the initial Gaussian that touch nothing with the palm at the start (the discrete
+        belief's conditioning, sample by sample)."""
+        n, world = self.rel.despot_particles, self.model.world
+        palm = np.tile(self.scene.hand_start.as_array(), (n, 1))
+        kept = np.zeros((0, 3))
+        while len(kept) < n:
+            poses = self.belief.sample(world, n, rng=rng)
+            kept = np.concatenate([kept, poses[~self.contact.touches(palm, poses)]])
+        return ParticleBelief.uniform(kept[:n])
+
+    def decide(self, policy: str, point: int, belief,
                rng: np.random.Generator) -> tuple[int, float]:
         """(action, planning ms) of ``policy`` at lattice point ``point``, discrete belief
-        (S,)."""
+        (S,) (a particle belief for ``lat-despot-continuous``)."""
+        if policy in CONTINUOUS_ONLY:
+            result = self.lat[policy].plan(belief, rng=rng, point=point)
+            return result.action, result.planning_ms
         if policy in self.vectors:
             return self.vectors[policy].act(belief), 0.0
         if policy in self.lift:
@@ -240,6 +275,8 @@ class SceneEpisodes:
         """One episode of ``policy`` on the ``kind`` Lat-POMDP (see the module docstring);
         ``keep_lattice``: with the lattice's asked edges and answers (the lattice figure's
         episode; 33,000 entries, so not every episode's)."""
+        if policy in CONTINUOUS_ONLY and kind != "continuous":
+            raise ValueError(f"{policy} runs on the continuous model only")
         rng = np.random.default_rng(seed_key)
         lat, model, horizon = self.models[kind], self.model, self.rel.horizon
         gamma = lat.discount
@@ -250,7 +287,8 @@ class SceneEpisodes:
         else:
             cell = rng.choice(len(self.initial), p=self.initial)
             state = lat.with_point(self.lattice.start_point, np.array([[cell]]))
-        belief = self.initial.copy()
+        particles = policy in CONTINUOUS_ONLY
+        belief = self.free_particles(rng) if particles else self.initial.copy()
         in_goal = np.zeros(horizon + 1, dtype=bool)
         in_goal[0] = self._in_goal(lat, state)
         self.lattice.reset_asked()
@@ -269,7 +307,12 @@ class SceneEpisodes:
                 total -= float(np.sum(gamma ** np.arange(t, horizon)))
                 break
             total += gamma ** t * float(step.rewards[0])
-            belief, _ = belief_update(model.pomdp, belief, action, int(step.observations[0]))
+            observation = int(step.observations[0])
+            if particles:
+                reading = observation_reading(observation, model.world.sensor_count)
+                belief, _ = self.filter.update(belief, self.vectors_m[action], reading, rng=rng)
+            else:
+                belief, _ = belief_update(model.pomdp, belief, action, observation)
             state = step.next_states
             in_goal[t + 1] = self._in_goal(lat, state)
         return LatEpisode(in_goal, total, infeasible, unmodelled,
@@ -351,13 +394,21 @@ def summarise(episodes: list[LatEpisode], kind: str) -> dict:
     return out
 
 
-def scene_entry(discrete: dict, continuous: dict) -> dict:
+def models_of(policy: str) -> tuple[str, ...]:
+    """The models ``policy`` is evaluated on."""
+    return ("continuous",) if policy in CONTINUOUS_ONLY else MODELS
+
+
+def scene_entry(discrete: dict | None, continuous: dict) -> dict:
     """A policy's summary entry: the value on the discrete model (Fig. 7.4-Top), success,
     infeasible and un-modelled contact rates on the continuous one (Middle, Bottom), and
-    its planning times over both."""
+    its planning times over both. A policy evaluated on the continuous model alone
+    (``discrete`` None) has its value there (``value_model: continuous``)."""
+    if discrete is None:
+        discrete = {**continuous, "value_model": "continuous"}
     entry = {"discounted_value": discrete["discounted_value"],
              "discounted_value_ci95": discrete["discounted_value_ci95"],
-             "value_model": "discrete",
+             "value_model": discrete.get("value_model", "discrete"),
              "discrete_infeasible_rate": discrete["infeasible_rate"]}
     for key in ("success_rate", "success_rate_ci95", "success_over_time", "infeasible_rate",
                 "unmodelled_contact_rate", "lattice_edges_asked_per_episode",
@@ -383,7 +434,7 @@ def run_scenes(rel: RelSettings, scenes: SceneSettings, solved_path: Path, out: 
     # trial index outermost: a study stopped part-way has its first trials of every scene
     # and policy (summarised by ``--trials N --resume`` with N of them done)
     jobs = [(scene, policy, kind, j) for j in range(rel.trials) for scene in scenes.scenes
-            for policy in policies for kind in MODELS]
+            for policy in policies for kind in models_of(policy)]
     results = map_trials(scene_episode,
                          [Job("/".join(map(str, job)), (rel, scenes, str(solved_path), job))
                           for job in jobs],
@@ -394,11 +445,11 @@ def run_scenes(rel: RelSettings, scenes: SceneSettings, solved_path: Path, out: 
     for scene in scenes.scenes:
         result[scene] = {}
         for policy in policies:
-            by_model = {kind: [episodes[(scene, policy, kind, j)] for j in range(rel.trials)]
-                        for kind in MODELS}
-            result[scene][policy] = scene_entry(summarise(by_model["discrete"], "discrete"),
-                                                summarise(by_model["continuous"],
-                                                          "continuous"))
+            by_model = {kind: summarise([episodes[(scene, policy, kind, j)]
+                                         for j in range(rel.trials)], kind)
+                        for kind in models_of(policy)}
+            result[scene][policy] = scene_entry(by_model.get("discrete"),
+                                                by_model["continuous"])
         first = episodes.get((scene, "lat-despot", "continuous", 0))
         if first is not None:
             save_lattice(out / f"lattice_{Path(scene).stem}.npz", scene, rel, scenes, first)

@@ -155,3 +155,35 @@ def test_a_resumed_scenes_part_reuses_the_solved_policy_and_the_episodes(tmp_pat
         again = resumed["scenes"]["right_obstacles"][policy]
         for key in ("discounted_value", "success_rate", "infeasible_rate", "trials"):
             assert again[key] == entry[key], (policy, key)
+
+
+def test_lat_despot_on_the_continuous_model_is_asked_for_by_name(tmp_path, small_problem):
+    """``lat-despot-continuous`` is not in the default set; asked for, it runs on the
+    continuous model alone (one episode per trial, not two), tracks the object with the MPF,
+    never takes an infeasible action, and is valued on the continuous model."""
+    from experiments.latdespot_scenes import DEFAULT_POLICIES, SceneSettings
+
+    assert "lat-despot-continuous" not in SceneSettings().policies == DEFAULT_POLICIES
+    config = tmp_path / "config.yaml"
+    config.write_text(yaml.safe_dump({"scenes": {
+        "lattice_x_range_m": [-0.04, 0.10], "lattice_y_range_m": [-0.12, 0.12],
+        "cache_dir": str(tmp_path / "cache")}}))
+    out = tmp_path / "lat"
+    assert main(["experiment", "latdespot", "--config", str(config), "--part", "scenes",
+                 "--scene", "right_obstacles", "--policies", "lift-qmdp",
+                 "lat-despot-continuous", "--trials", "2", "--horizon", "4",
+                 "--problem", str(small_problem), "--solve-trials", "5",
+                 "--continuous-despot-trials", "3", "--backend", "serial", "--no-progress",
+                 "--out", str(out)]) == 0
+    keys = [json.loads(line)["key"] for line in
+            (out / "trials.jsonl").read_text().splitlines()[1:]]
+    assert sorted(k for k in keys if "lat-despot-continuous" in k) == [
+        "right_obstacles/lat-despot-continuous/continuous/0",
+        "right_obstacles/lat-despot-continuous/continuous/1"]
+    entries = json.loads((out / "summary.json").read_text())["scenes"]["right_obstacles"]
+    entry = entries["lat-despot-continuous"]
+    assert entry["value_model"] == "continuous" and entries["lift-qmdp"]["value_model"] == \
+        "discrete"
+    assert entry["discounted_value"] == entry["continuous_discounted_value"]
+    assert entry["infeasible_rate"] == 0.0 and entry["trials"] == 2
+    assert len(entry["success_over_time"]) == 5
