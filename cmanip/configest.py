@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from cmanip.config import overridden
 from cmanip.options import setting_option, subcommand, wait_for_meshcat
 
 
@@ -62,8 +63,6 @@ def mpf_variant_options(parser, defaults) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from dataclasses import replace
-
     from diagrams.herb.configest_episode import (
         ConfigestEpisodeSettings,
         run_configest_episode,
@@ -71,13 +70,10 @@ def _run(args: argparse.Namespace) -> int:
     from diagrams.meshcat import local_meshcat
     from models.arms.spec import ArmSpec
 
-    given = vars(args)
-    if "outlier_gate" in given:
-        given["outlier_log_evidence"] = given.pop("outlier_gate")
-    settings = replace(ConfigestEpisodeSettings(), **{
-        key: given[key] for key in ("arm", "particles", "seed", "tactile_error_rate", "constraints",
-                                "dual_share", "metric", "outlier_log_evidence")
-        if key in given})
+    same = ("arm", "particles", "seed", "tactile_error_rate", "constraints", "dual_share",
+            "metric")
+    settings = overridden(ConfigestEpisodeSettings(), args, {
+        **{key: key for key in same}, "outlier_gate": "outlier_log_evidence"})
     if settings.outlier_log_evidence is not None and not settings.outlier_log_evidence < 0:
         raise ValueError(f"--outlier-gate must be < 0, got {settings.outlier_log_evidence}")
     if settings.tactile_error_rate is not None and not 0 <= settings.tactile_error_rate <= 1:

@@ -85,7 +85,15 @@ def add_episode_options(parser, *, policy: bool) -> None:
 
 
 def override_episode(episode: EpisodeSettings, args: argparse.Namespace) -> EpisodeSettings:
-    """``episode`` with the episode options given on the command line."""
+    """``episode`` with the episode options given on the command line.
+
+    Raises:
+        ValueError: ``--outlier-gate`` not below 0 (named as the flag, before the settings
+            name their field).
+    """
+    gate = vars(args).get("outlier_gate")
+    if gate is not None and not gate < 0:
+        raise ValueError(f"--outlier-gate must be < 0, got {gate}")
     episode = overridden(episode, args, {
         "scene": "scene", "object": "object_name", "policy": "policy",
         "estimator": "estimator", "outlier_gate": "estimator_outlier_log_evidence",

@@ -91,3 +91,10 @@ def test_the_episode_and_the_model_must_push_the_same_object(tmp_path):
     path.write_text("episode:\n  object_name: small_box\n")
     with pytest.raises(ConfigError, match="planning model is solved for 'bottle'"):
         load_config(RunConfig, path)
+
+
+@pytest.mark.parametrize("command", [["run"], ["configest", "run"]])
+def test_a_bad_outlier_gate_is_named_as_its_flag(command, tmp_path, capsys):
+    assert main([*command, "--outlier-gate", "3", "--out", str(tmp_path / "x")]) == 2
+    assert "--outlier-gate must be < 0, got 3.0" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
