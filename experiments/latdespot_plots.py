@@ -88,8 +88,7 @@ def plot_scenes(summary: dict, out: Path) -> None:
         for row in range(3):
             axes[row, col].set_xticks(x, [SCENE_LABELS.get(n, n) for n in names], fontsize=7)
     axes[0, 0].invert_yaxis()
-    axes[0, 0].set_ylabel("value, discrete model (hatched:\ncontinuous; inverted: "
-                          "shorter is better)")
+    axes[0, 0].set_ylabel("value, discrete model\n(hatched: continuous)")
     axes[1, 0].set_ylabel("Pr(goal), continuous")
     axes[1, 0].set_ylim(0, 1)
     axes[2, 0].set_ylabel("Pr(infeasible action)")
