@@ -92,7 +92,7 @@ SCENES = ("empty", "right_obstacles", "left_obstacles", "cul_de_sac")
 POLICIES = ("rel-qmdp", "rel-sarsop", "rel-despot", "lift-qmdp", "lift-sarsop",
             "lat-despot", "lat-despot-pb", "lat-despot-continuous")
 #: The study's policies unless told otherwise (``lat-despot-continuous`` is asked for by
-#: name: a 200-trial study of it would take a day on two cores).
+#: name: a 200-trial study of it would take about 16 hours on two cores).
 DEFAULT_POLICIES = POLICIES[:-1]
 #: Policies that plan on the continuous model and are evaluated on it alone.
 CONTINUOUS_ONLY = ("lat-despot-continuous",)
@@ -236,7 +236,7 @@ class SceneEpisodes:
                         replace(lat_settings, max_trials=rel.continuous_despot_trials))}
         self.filter = make_filter("mpf", model.world, AnalyticManifold(model.world))
         self.rel_despot = rel_despot
-        self.vectors_m = model.spec.action_vectors()
+        self.action_vectors = model.spec.action_vectors()
         self.initial = discrete.free_at_start(initial)
 
     def free_particles(self, rng: np.random.Generator) -> ParticleBelief:
@@ -310,7 +310,8 @@ class SceneEpisodes:
             observation = int(step.observations[0])
             if particles:
                 reading = observation_reading(observation, model.world.sensor_count)
-                belief, _ = self.filter.update(belief, self.vectors_m[action], reading, rng=rng)
+                belief, _ = self.filter.update(belief, self.action_vectors[action], reading,
+                                               rng=rng)
             else:
                 belief, _ = belief_update(model.pomdp, belief, action, observation)
             state = step.next_states

@@ -13,6 +13,15 @@ from models.planar.world import PlanarWorld
 from planning.hand.discretization import HandDiscretization, HandProblemSpec
 
 
+def small_lattice_config(tmp_path):
+    """A study configuration with a small lattice (its IK table cached under tmp_path)."""
+    config = tmp_path / "config.yaml"
+    config.write_text(yaml.safe_dump({"scenes": {
+        "lattice_x_range_m": [-0.04, 0.10], "lattice_y_range_m": [-0.12, 0.12],
+        "cache_dir": str(tmp_path / "cache")}}))
+    return config
+
+
 def test_the_chapter_7_problem_has_four_moves_and_one_grid():
     spec = HandProblemSpec.load("rel_ch7")
     assert spec.action_names == ("forward", "back", "left", "right")
@@ -76,10 +85,7 @@ def test_continuous_episodes_do_not_depend_on_the_worker_count(small_problem):
 
 
 def test_scenes_and_bound_run_end_to_end(tmp_path, capsys, small_problem):
-    config = tmp_path / "config.yaml"
-    config.write_text(yaml.safe_dump({"scenes": {
-        "lattice_x_range_m": [-0.04, 0.10], "lattice_y_range_m": [-0.12, 0.12],
-        "cache_dir": str(tmp_path / "cache")}}))
+    config = small_lattice_config(tmp_path)
     out = tmp_path / "lat"
     assert main(["experiment", "latdespot", "--config", str(config), "--part", "bound",
                  "--scene", "right_obstacles", "--trials", "2", "--horizon", "4",
@@ -133,10 +139,7 @@ def test_a_resumed_scenes_part_reuses_the_solved_policy_and_the_episodes(tmp_pat
     """Part ``scenes`` keeps each episode in trials.jsonl and its solved policy in
     solved_rel.npz; resumed with one more trial it runs only the new episodes and agrees
     with a whole run of that many."""
-    config = tmp_path / "config.yaml"
-    config.write_text(yaml.safe_dump({"scenes": {
-        "lattice_x_range_m": [-0.04, 0.10], "lattice_y_range_m": [-0.12, 0.12],
-        "cache_dir": str(tmp_path / "cache")}}))
+    config = small_lattice_config(tmp_path)
     common = ["experiment", "latdespot", "--config", str(config), "--part", "scenes",
               "--scene", "right_obstacles", "--policies", "lift-qmdp", "lat-despot",
               "--horizon", "4", "--problem", str(small_problem), "--solve-trials", "5",
@@ -164,10 +167,7 @@ def test_lat_despot_on_the_continuous_model_is_asked_for_by_name(tmp_path, small
     from experiments.latdespot_scenes import DEFAULT_POLICIES, SceneSettings
 
     assert "lat-despot-continuous" not in SceneSettings().policies == DEFAULT_POLICIES
-    config = tmp_path / "config.yaml"
-    config.write_text(yaml.safe_dump({"scenes": {
-        "lattice_x_range_m": [-0.04, 0.10], "lattice_y_range_m": [-0.12, 0.12],
-        "cache_dir": str(tmp_path / "cache")}}))
+    config = small_lattice_config(tmp_path)
     out = tmp_path / "lat"
     assert main(["experiment", "latdespot", "--config", str(config), "--part", "scenes",
                  "--scene", "right_obstacles", "--policies", "lift-qmdp",
