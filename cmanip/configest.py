@@ -9,7 +9,7 @@ import argparse
 from pathlib import Path
 
 from cmanip.config import overridden
-from cmanip.options import setting_option, subcommand, wait_for_meshcat
+from cmanip.options import check_outlier_gate, setting_option, subcommand, wait_for_meshcat
 
 
 def register(commands) -> None:
@@ -70,12 +70,11 @@ def _run(args: argparse.Namespace) -> int:
     from diagrams.meshcat import local_meshcat
     from models.arms.spec import ArmSpec
 
+    check_outlier_gate(args)
     same = ("arm", "particles", "seed", "tactile_error_rate", "constraints", "dual_share",
             "metric")
     settings = overridden(ConfigestEpisodeSettings(), args, {
         **{key: key for key in same}, "outlier_gate": "outlier_log_evidence"})
-    if settings.outlier_log_evidence is not None and not settings.outlier_log_evidence < 0:
-        raise ValueError(f"--outlier-gate must be < 0, got {settings.outlier_log_evidence}")
     if settings.tactile_error_rate is not None and not 0 <= settings.tactile_error_rate <= 1:
         raise ValueError(f"--tactile-error-rate must be in [0, 1], got "
                          f"{settings.tactile_error_rate}")

@@ -65,6 +65,17 @@ def setting_option(parser, flag: str, default, help: str, **kwargs) -> None:
                         help=f"{help} (default: {default})", **kwargs)
 
 
+def check_outlier_gate(args: argparse.Namespace) -> None:
+    """Refuse an ``--outlier-gate`` (a log evidence) that is not below 0, naming the flag.
+
+    Raises:
+        ValueError: the gate given and >= 0.
+    """
+    gate = vars(args).get("outlier_gate")
+    if gate is not None and not gate < 0:
+        raise ValueError(f"--outlier-gate must be < 0, got {gate}")
+
+
 def wait_for_meshcat(url: str) -> None:
     """Keep the live Meshcat up until Enter, when a terminal can answer; otherwise say so
     and return (a pipe or a batch job has no Enter to give)."""

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from cmanip.config import RunConfig, load_config, overridden, with_object, write_config
-from cmanip.options import setting_option, subcommand, wait_for_meshcat
+from cmanip.options import check_outlier_gate, setting_option, subcommand, wait_for_meshcat
 from diagrams.herb.settings import (
     ESTIMATORS,
     LAT_DESPOT_MODELS,
@@ -91,9 +91,7 @@ def override_episode(episode: EpisodeSettings, args: argparse.Namespace) -> Epis
         ValueError: ``--outlier-gate`` not below 0 (named as the flag, before the settings
             name their field).
     """
-    gate = vars(args).get("outlier_gate")
-    if gate is not None and not gate < 0:
-        raise ValueError(f"--outlier-gate must be < 0, got {gate}")
+    check_outlier_gate(args)
     episode = overridden(episode, args, {
         "scene": "scene", "object": "object_name", "policy": "policy",
         "estimator": "estimator", "outlier_gate": "estimator_outlier_log_evidence",

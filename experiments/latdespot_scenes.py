@@ -243,25 +243,21 @@ class SceneEpisodes:
         """The particle belief of ``lat-despot-continuous``: ``despot_particles`` poses of
         the initial Gaussian that touch nothing with the palm at the start (the discrete
         belief's conditioning, sample by sample)."""
-        n, world = self.rel.despot_particles, self.model.world
-        palm = np.tile(self.scene.hand_start.as_array(), (n, 1))
-        kept = np.zeros((0, 3))
-        while len(kept) < n:
-            poses = self.belief.sample(world, n, rng=rng)
-            kept = np.concatenate([kept, poses[~self.contact.touches(palm, poses)]])
-        return ParticleBelief.uniform(kept[:n])
+        n = self.rel.despot_particles
+        return ParticleBelief.uniform(self.contact.free_starts(
+            lambda k: self.belief.sample(self.model.world, k, rng=rng), n, batch=n))
 
     def decide(self, policy: str, point: int, belief,
                rng: np.random.Generator) -> tuple[int, float]:
         """(action, planning ms) of ``policy`` at lattice point ``point``, discrete belief
         (S,) (a particle belief for ``lat-despot-continuous``)."""
-        if policy in CONTINUOUS_ONLY:
-            result = self.lat[policy].plan(belief, rng=rng, point=point)
-            return result.action, result.planning_ms
         if policy in self.vectors:
             return self.vectors[policy].act(belief), 0.0
         if policy in self.lift:
             result = self.lift[policy].plan(belief, rng=rng, point=point)
+            return result.action, result.planning_ms
+        if policy in CONTINUOUS_ONLY:  # DESPOT draws its scenarios from the particles
+            result = self.lat[policy].plan(belief, rng=rng, point=point)
             return result.action, result.planning_ms
         cells = rng.choice(len(belief), size=self.rel.despot_particles, p=belief)[:, None]
         if policy == "rel-despot":

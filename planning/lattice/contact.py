@@ -25,7 +25,8 @@ from models.se2 import compose
 
 #: Signed distance (m) below which the object counts as touching an obstacle.
 CONTACT_DISTANCE_M = 0.0
-#: How many poses :meth:`UnmodelledContact.free_start` draws before it gives up.
+#: How many poses per pose asked :meth:`UnmodelledContact.free_starts` draws before it
+#: gives up.
 MAX_START_DRAWS = 1000
 
 
@@ -74,11 +75,24 @@ class UnmodelledContact:
         Raises:
             ValueError: no free pose in :data:`MAX_START_DRAWS` draws.
         """
+        return self.free_starts(draw, 1, batch=batch)[0]
+
+    def free_starts(self, draw: Callable[[int], np.ndarray], n: int, *,
+                    batch: int) -> np.ndarray:
+        """(n, 3) the first ``n`` poses of ``draw(batch) -> (batch, 3)``, drawn ``batch`` at
+        a time, that touch nothing with the palm at the scene's start (see
+        :meth:`free_start`; a particle belief conditioned the same way draws n at a time).
+
+        Raises:
+            ValueError: fewer than ``n`` free poses in ``n`` x :data:`MAX_START_DRAWS` draws.
+        """
         palm = np.tile(self.scene.hand_start.as_array(), (batch, 1))
-        for _ in range(0, MAX_START_DRAWS, batch):
+        kept = []
+        for _ in range(0, n * MAX_START_DRAWS, batch):
             poses = draw(batch)
-            free = np.flatnonzero(~self.touches(palm, poses))
-            if len(free):
-                return poses[free[0]]
+            kept.extend(poses[~self.touches(palm, poses)])
+            if len(kept) >= n:
+                return np.array(kept[:n])
         raise ValueError(f"no pose free of the clutter of scene {self.scene.name!r} in "
-                         f"{MAX_START_DRAWS} draws from the belief")
+                         f"{n * MAX_START_DRAWS} draws from the belief"
+                         + ("" if n == 1 else f" (found {len(kept)} of {n})"))

@@ -182,6 +182,11 @@ def test_the_true_object_never_starts_inside_the_clutter():
                                                                           rng=rng))
                        for _ in range(40)])
     assert not contact.touches(np.repeat(palm, 40, axis=0), starts).any()
+    rng = np.random.default_rng(1)
+    many = contact.free_starts(lambda n: world.sample_gaussian(mean, std, n, rng=rng), 300,
+                               batch=300)  # a particle belief conditioned the same way
+    assert many.shape == (300, 3)
+    assert not contact.touches(np.repeat(palm, 300, axis=0), many).any()
     with pytest.raises(ValueError, match="clutter"):
         far = np.random.default_rng(2)
         contact.free_start(lambda n: world.sample_gaussian(np.array([0.0, 5.0, 0.0]),
