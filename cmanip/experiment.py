@@ -40,7 +40,7 @@ from experiments.closedloop_study import ClosedLoopSettings
 from experiments.handplan_study import PARTS as HANDPLAN_PARTS
 from experiments.latdespot_scenes import POLICIES as LAT_POLICIES
 from experiments.latdespot_scenes import SCENES
-from experiments.latdespot_study import CONTINUOUS_ROLLOUTS
+from experiments.latdespot_study import CONTINUOUS_ROLLOUTS, OUTSIDE_MODES
 from experiments.latdespot_study import PARTS as LATDESPOT_PARTS
 from experiments.mpf_study import PARTS as MPF_PARTS
 from experiments.visuotactile_study import PARTS as VISUOTACTILE_PARTS
@@ -236,6 +236,10 @@ def _register_latdespot(studies) -> None:
                    "rel-despot-continuous's rollouts: Rel-QMDP on the discrete model from "
                    "each scenario's cell, or on the continuous model (slow)",
                    choices=list(CONTINUOUS_ROLLOUTS))
+    setting_option(lat, "--continuous-outside", rel.continuous_outside,
+                   "lat-despot-continuous's bounds for an object outside the trust region: "
+                   "the discrete model's absorbing sentinel, or the steps back to the "
+                   "region then the bounds there", choices=list(OUTSIDE_MODES))
     scenes = LATDESPOT.scenes
     setting_option(lat, "--scene", "all", "the scenes of parts scenes and bound (built-in "
                    f"name or YAML path, or all: {', '.join(scenes.scenes)})")
@@ -266,7 +270,8 @@ def resolve_latdespot(args: argparse.Namespace) -> LatDespotStudyConfig:
         "solve_seconds": "solve_seconds", "solve_trials": "solve_trials",
         "despot_trials": "despot_trials", "despot_seconds": "despot_seconds",
         "continuous_despot_trials": "continuous_despot_trials",
-        "continuous_rollout": "continuous_rollout"})
+        "continuous_rollout": "continuous_rollout",
+        "continuous_outside": "continuous_outside"})
     scenes = overridden(config.scenes, args, {
         "lat_despot_seconds": "lat_despot_seconds", "cache_dir": "cache"})
     given = vars(args)

@@ -232,7 +232,8 @@ class SceneEpisodes:
         self.lat = {"lat-despot": LatDespotPlanner(self.models["discrete"], lat_settings),
                     "lat-despot-pb": LatDespotPlanner(pb, lat_settings),
                     "lat-despot-continuous": LatDespotPlanner(
-                        self.models["continuous"],
+                        LatticePOMDP(model, self.lattice, contact, inner="continuous",
+                                     initial=belief, outside=rel.continuous_outside),
                         replace(lat_settings, max_trials=rel.continuous_despot_trials))}
         self.filter = make_filter("mpf", model.world, AnalyticManifold(model.world))
         self.rel_despot = rel_despot
@@ -365,6 +366,8 @@ def trial_store(rel: RelSettings, scenes: SceneSettings, out: Path, *,
     count, scenes or policies, which only choose episodes: a resumed study may add some)."""
     relevant = settings_dict(rel, scenes)
     del relevant["trials"], relevant["scenes"]["scenes"], relevant["scenes"]["policies"]
+    if relevant["continuous_outside"] == "sentinel":  # stores written before the setting
+        del relevant["continuous_outside"]  # existed ran the sentinel: they stay resumable
     return TrialStore(out, "latdespot-scenes", relevant, resume=resume)
 
 

@@ -53,6 +53,7 @@ from planning.hand.beliefs import GaussianBelief
 from planning.hand.discretization import HandProblemSpec
 from planning.hand.model import HandPOMDP, build_hand_pomdp
 from planning.hand.policy import qmdp_vectors
+from planning.lattice.pomdp import OUTSIDE_MODES
 from planning.pomdp.despot import DespotSettings
 from planning.pomdp.generative import TabularGenerative
 from planning.pomdp.online import DespotPlanner
@@ -91,6 +92,10 @@ class RelSettings:
         continuous_rollout: ``discrete`` (Rel-QMDP rolled out on the discrete model from
             each scenario's cell, compiled) or ``continuous`` (on the continuous model;
             about 0.2 s an expansion): see :mod:`planning.hand.generative`.
+        continuous_outside: how ``lat-despot-continuous``'s bounds value an object outside
+            the trust region: ``sentinel`` (the discrete model's absorbing -1 a step) or
+            ``return`` (charged the steps back to the region, then the bounds there):
+            see :mod:`planning.lattice.pomdp`.
     """
 
     trials: int = 500
@@ -112,6 +117,7 @@ class RelSettings:
     despot_particles: int = 1000
     continuous_despot_trials: int | None = 50
     continuous_rollout: str = "discrete"
+    continuous_outside: str = "sentinel"
 
     def __post_init__(self):
         if self.trials < 2 or self.horizon < 1:
@@ -128,6 +134,9 @@ class RelSettings:
         if self.continuous_rollout not in CONTINUOUS_ROLLOUTS:
             raise ValueError(f"continuous_rollout must be one of {CONTINUOUS_ROLLOUTS}, got "
                              f"{self.continuous_rollout!r}")
+        if self.continuous_outside not in OUTSIDE_MODES:
+            raise ValueError(f"continuous_outside must be one of {OUTSIDE_MODES}, got "
+                             f"{self.continuous_outside!r}")
 
 
 class DespotOnDiscreteBelief:

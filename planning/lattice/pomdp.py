@@ -35,6 +35,17 @@ Bounds (thesis sec. 7.2.2-7.2.3):
   the lattice says it is infeasible (the lattice queried in that order, lazily); rows that
   make un-modelled contact go to ``s_bad``.
 
+Outside the trust region (continuous inner model only; beyond the thesis). The discrete
+model's sentinel is absorbing, so both bounds value an object outside the trust region at
+``-1 / (1 - gamma)``, wherever it lies; the continuous model keeps simulating it and the hand
+can bring it back. ``outside="sentinel"`` keeps the discrete model's view (a search whose
+scenarios have all left sees every action alike); ``outside="return"`` values such a
+scenario as if it returned by the shortest path: ``d`` steps of -1 (``d``: the 1-norm of its
+distance to the region, in action steps), then the bound of the nearest cell inside, i.e.
+``gamma^d V(clamped) - (1 - gamma^d) / (1 - gamma)``, and starts its rollout there at depth
+``+ d`` (a heuristic like the rest of the continuous bounds; measured in
+``experiments/results/latdespot_continuous/``).
+
 The robot's configuration is known: every live scenario of a node has the same lattice
 point (the actions so far fix it), so the rollout asks the lattice one edge per node and
 depth, in one batch per depth.
@@ -53,6 +64,7 @@ from planning.pomdp.generative import GenerativeStep, TabularGenerative, action_
 from planning.pomdp.point_based import AlphaVectorPolicy
 
 UNKNOWN_CONTACT = -1
+OUTSIDE_MODES = ("sentinel", "return")
 
 
 def cell_poses(model: HandPOMDP) -> np.ndarray:
@@ -102,14 +114,24 @@ class LatticePOMDP:
         rollout_policy: the hand-relative policy lifted in the rollouts (default:
             Rel-QMDP, as the thesis; the point-based solver's alpha-vectors make them
             Lift-SARSOP's).
+        outside: ``"sentinel"`` or ``"return"``: how the bounds value a continuous
+            scenario outside the trust region (see the module docstring; the discrete
+            inner model has only the sentinel).
     """
 
     def __init__(self, model: HandPOMDP, lattice: ConfigurationLattice,
                  contact: UnmodelledContact, *, inner: str = "discrete", initial=None,
                  upper_values: np.ndarray | None = None,
-                 rollout_policy: AlphaVectorPolicy | None = None):
+                 rollout_policy: AlphaVectorPolicy | None = None,
+                 outside: str = "sentinel"):
         if inner not in ("discrete", "continuous"):
             raise ValueError(f"inner must be 'discrete' or 'continuous', got {inner!r}")
+        if outside not in OUTSIDE_MODES:
+            raise ValueError(f"outside must be one of {', '.join(OUTSIDE_MODES)}, got "
+                             f"{outside!r}")
+        if outside == "return" and inner != "continuous":
+            raise ValueError("outside='return' needs the continuous inner model")
+        self.outside = outside
         self.model = model
         self.lattice = lattice
         self.contact = contact
@@ -209,7 +231,10 @@ class LatticePOMDP:
 
     def upper_bound(self, states: np.ndarray) -> np.ndarray:
         states = np.asarray(states, dtype=float)
-        return np.where(states[:, 0] == BAD, 0.0, self._upper_values[self.cells(states)])
+        cells, steps = self.bound_cells(states)
+        kept = self.discount ** steps
+        return np.where(states[:, 0] == BAD, 0.0,
+                        kept * self._upper_values[cells] + (1.0 - kept) * self.bad_return)
 
     def policy_values(self, cells: np.ndarray) -> np.ndarray:
         """(A,) the lifted policy's action values at the histogram of ``cells`` (n,) (its
@@ -227,7 +252,7 @@ class LatticePOMDP:
         if not live.any():
             return np.zeros(len(states), dtype=np.int64)
         point = int(states[np.flatnonzero(live)[0], 0])
-        values = self.policy_values(self.cells(states[live]))[None]
+        values = self.policy_values(self.bound_cells(states[live])[0])[None]
         action = lift_choice(values, lambda rows, acts: self.lattice.feasible(
             np.full(len(rows), point), acts))
         return np.full(len(states), int(action[0]), dtype=np.int64)
@@ -239,9 +264,10 @@ class LatticePOMDP:
         asks for evaluated between its calls, each call's requests in one batch."""
         states = np.asarray(states, dtype=float)
         points = states[:, 0].astype(np.int64)
-        cells = self.cells(states)
-        depth = np.array(depths, dtype=np.int64, copy=True)
-        scale, value = np.ones(len(states)), np.zeros(len(states))
+        cells, steps = self.bound_cells(states)
+        depth = np.asarray(depths, dtype=np.int64) + steps
+        scale = self.discount ** steps
+        value = (1.0 - scale) * self.bad_return
         alive = (points != BAD) & (depth < max_depth) & ~self._terminal[cells]
         offsets = np.asarray(offsets, dtype=np.int64)
         pending = np.empty((len(offsets) - 1, 2), dtype=np.int64)
@@ -295,6 +321,29 @@ class LatticePOMDP:
         """(K,) the discrete cell of each row's hand-relative state."""
         inner = states[:, 1:]
         return self.model.index(inner) if self.continuous else inner[:, 0].astype(np.int64)
+
+    def bound_cells(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(cells (K,), steps (K,) int64): the cell whose bounds each row takes and the
+        steps it is charged to get there: its own cell and 0, except, with
+        ``outside="return"``, a pose outside the trust region: the cell of its nearest
+        pose inside and the 1-norm of the distance, in action steps (module docstring)."""
+        cells = self.cells(states)
+        steps = np.zeros(len(states), dtype=np.int64)
+        if self.outside == "sentinel" or not len(states):
+            return cells, steps
+        trust = self.model.discretization.spec
+        lo = np.array([trust.trust_x_m[0], trust.trust_y_m[0]])
+        hi = np.array([trust.trust_x_m[1], trust.trust_y_m[1]])
+        xy = states[:, 1:3]
+        excess = np.maximum(lo - xy, 0.0) + np.maximum(xy - hi, 0.0)
+        out = np.flatnonzero((states[:, 0] != BAD) & (excess.sum(axis=1) > 0))
+        if len(out):
+            margin = 0.5 * trust.free_cell_m  # a cell centre's distance from the edge
+            nearest = states[out, 1:].copy()
+            nearest[:, :2] = np.clip(xy[out], lo + margin, hi - margin)
+            cells[out] = self.model.index(nearest)
+            steps[out] = np.ceil(excess[out] / self.model.spec.step_m - 1e-9).sum(axis=1)
+        return cells, steps
 
     def touches(self, points: np.ndarray, inner_states: np.ndarray) -> np.ndarray:
         """(K,) bool: un-modelled contact of inner states at lattice points."""

@@ -170,3 +170,31 @@ def test_lat_despot_plans_on_the_continuous_model_from_pose_particles(lat, ahead
     assert result.stats["trials"] == 5 and result.action != RIGHT
     rows = continuous.from_poses(start, poses[:3])
     np.testing.assert_array_equal(rows[:, 1:], poses[:3])  # poses, not cells
+
+
+def test_outside_the_trust_region_return_charges_the_steps_back(lat):
+    """``outside="return"``: a pose 5 cm left of the region (3 steps of 2 cm) is valued as
+    three steps of -1 and then the nearest cell's bound; the sentinel values it as lost."""
+    kwargs = dict(inner="continuous")
+    sentinel = LatticePOMDP(lat.model, lat.lattice, lat.contact, **kwargs)
+    back = LatticePOMDP(lat.model, lat.lattice, lat.contact, outside="return", **kwargs)
+    start = lat.lattice.start_point
+    rows = back.from_poses(start, np.array([[0.15, 0.11, 0.3], [0.15, -0.03, 0.3]]))
+    cells, steps = back.bound_cells(rows)
+    np.testing.assert_array_equal(steps, [3, 0])
+    nearest = lat.model.index(np.array([[0.15, 0.05, 0.3]]))[0]
+    assert cells[0] == nearest and cells[1] == sentinel.cells(rows)[1]
+    gamma, v = lat.discount, lat.tabular.q_values.max(axis=1)
+    np.testing.assert_allclose(back.upper_bound(rows),
+                               [gamma ** 3 * v[nearest] - (1 - gamma ** 3) / (1 - gamma),
+                                v[cells[1]]])
+    lost = -1 / (1 - gamma)
+    np.testing.assert_allclose(sentinel.upper_bound(rows)[0], lost)
+    np.testing.assert_allclose(sentinel.upper_bound(rows)[1], back.upper_bound(rows)[1])
+    u = np.random.default_rng(3).random((1, 21, lat.uniforms_per_step))
+    args = (np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.array([0, 1]), u, 20)
+    twenty_lost = -(1 - gamma ** 20) / (1 - gamma)  # the sentinel's -1 a step, 20 deep
+    np.testing.assert_allclose(sentinel.rollout(rows[:1], *args), twenty_lost)
+    assert back.rollout(rows[:1], *args)[0] > twenty_lost + 1.0
+    with pytest.raises(ValueError, match="continuous"):
+        LatticePOMDP(lat.model, lat.lattice, lat.contact, outside="return")
