@@ -61,10 +61,10 @@ SMOOTHER_FAULT_S = 1.0
 """Length of a smoother fault (s)."""
 RECOVERY_FACTOR = 1.5
 REJECTED = {"nan-action": "action", "nan-reading": "observation"}
+"""The input a filter must report rejecting under each NaN fault."""
 OUTLIER_GATE = -30.0
 """The robust filters' outlier gate on log p(o | b+): about four wrong readings each of
 every particle with the arm's error rate 0.001, thirteen with the planar world's 0.1."""
-"""The input a filter must report rejecting under each NaN fault."""
 HAND_FILTERS = (FilterSpec("cpf", "cpf"), FilterSpec("mpf-am", "am"),
                 FilterSpec("mpf-rs", "rs"), FilterSpec("mpf-tr", "tr"))
 ARM_FILTERS = ("cpf", "mpf-ball")
