@@ -78,6 +78,7 @@ def test_visuotactile_reads_its_rig_once_at_the_top(tmp_path):
     ("handplan", "study:\n  spec:\n    discount: high\n", "study.spec.discount"),
     ("visuotactile", "study:\n  trials: [1]\n", "study.trials"),
     ("latdespot", "rel:\n  continuous_rollout: fast\n", "continuous_rollout"),
+    ("latdespot", "rel:\n  continuous_outside: wrap\n", "continuous_outside"),
     ("latdespot", "rel:\n  continuous_despot_trials: -3\n", "continuous_despot_trials"),
     ("latdespot", "rel:\n  continuous_despot_trials: many\n", "rel.continuous_despot_trials"),
 ])
@@ -91,7 +92,8 @@ def test_a_bad_study_config_names_the_file_and_field(tmp_path, capsys, study, te
 
 
 @pytest.mark.parametrize("option", [["--workers", "0"], ["--continuous-rollout", "fast"],
-                                    ["--continuous-despot-trials", "0"]])
+                                    ["--continuous-despot-trials", "0"],
+                                    ["--continuous-outside", "wrap"]])
 def test_bad_latdespot_options_are_usage_errors(tmp_path, capsys, option):
     with pytest.raises(SystemExit) as exit_:
         status = main(["experiment", "latdespot", *option, "--out", str(tmp_path / "o")])
