@@ -187,3 +187,20 @@ def test_lat_despot_on_the_continuous_model_is_asked_for_by_name(tmp_path, small
     assert entry["discounted_value"] == entry["continuous_discounted_value"]
     assert entry["infeasible_rate"] == 0.0 and entry["trials"] == 2
     assert len(entry["success_over_time"]) == 5
+
+
+def test_stores_written_before_continuous_outside_stay_resumable(tmp_path):
+    """A trials file whose header lacks ``continuous_outside`` (the stored studies ran the
+    sentinel before the setting existed) resumes with the sentinel and is refused, naming
+    the setting, with ``return``."""
+    from dataclasses import replace
+
+    from experiments.latdespot_scenes import SceneSettings, trial_store
+    from experiments.latdespot_study import RelSettings
+
+    rel, scenes = RelSettings(), SceneSettings()
+    header = trial_store(rel, scenes, tmp_path, resume=False).header
+    assert "continuous_outside" not in header["settings"]
+    trial_store(rel, scenes, tmp_path, resume=True)
+    with pytest.raises(ValueError, match="continuous_outside"):
+        trial_store(replace(rel, continuous_outside="return"), scenes, tmp_path, resume=True)

@@ -175,9 +175,9 @@ def test_lat_despot_plans_on_the_continuous_model_from_pose_particles(lat, ahead
 def test_outside_the_trust_region_return_charges_the_steps_back(lat):
     """``outside="return"``: a pose 5 cm left of the region (3 steps of 2 cm) is valued as
     three steps of -1 and then the nearest cell's bound; the sentinel values it as lost."""
-    kwargs = dict(inner="continuous")
-    sentinel = LatticePOMDP(lat.model, lat.lattice, lat.contact, **kwargs)
-    back = LatticePOMDP(lat.model, lat.lattice, lat.contact, outside="return", **kwargs)
+    sentinel = LatticePOMDP(lat.model, lat.lattice, lat.contact, inner="continuous")
+    back = LatticePOMDP(lat.model, lat.lattice, lat.contact, inner="continuous",
+                        outside="return")
     start = lat.lattice.start_point
     rows = back.from_poses(start, np.array([[0.15, 0.11, 0.3], [0.15, -0.03, 0.3]]))
     cells, steps = back.bound_cells(rows)
