@@ -214,7 +214,8 @@ class SceneEpisodes:
         self.contact = contact = discrete.contact
         self.models = {"discrete": discrete,
                        "continuous": LatticePOMDP(model, self.lattice, contact,
-                                                  inner="continuous", initial=belief)}
+                                                  inner="continuous", initial=belief,
+                                                  outside=rel.continuous_outside)}
         lat_settings = DespotSettings(scenarios=rel.despot_scenarios, depth=rel.despot_depth,
                                       max_trials=scenes.lat_despot_trials,
                                       seconds=scenes.lat_despot_seconds)
@@ -232,8 +233,7 @@ class SceneEpisodes:
         self.lat = {"lat-despot": LatDespotPlanner(self.models["discrete"], lat_settings),
                     "lat-despot-pb": LatDespotPlanner(pb, lat_settings),
                     "lat-despot-continuous": LatDespotPlanner(
-                        LatticePOMDP(model, self.lattice, contact, inner="continuous",
-                                     initial=belief, outside=rel.continuous_outside),
+                        self.models["continuous"],
                         replace(lat_settings, max_trials=rel.continuous_despot_trials))}
         self.filter = make_filter("mpf", model.world, AnalyticManifold(model.world))
         self.rel_despot = rel_despot

@@ -87,12 +87,13 @@ class UnmodelledContact:
             ValueError: fewer than ``n`` free poses in ``n`` x :data:`MAX_START_DRAWS` draws.
         """
         palm = np.tile(self.scene.hand_start.as_array(), (batch, 1))
-        kept = []
+        kept, found = [], 0
         for _ in range(0, n * MAX_START_DRAWS, batch):
             poses = draw(batch)
-            kept.extend(poses[~self.touches(palm, poses)])
-            if len(kept) >= n:
-                return np.array(kept[:n])
+            kept.append(poses[~self.touches(palm, poses)])
+            found += len(kept[-1])
+            if found >= n:
+                return np.concatenate(kept)[:n]
         raise ValueError(f"no pose free of the clutter of scene {self.scene.name!r} in "
                          f"{n * MAX_START_DRAWS} draws from the belief"
-                         + ("" if n == 1 else f" (found {len(kept)} of {n})"))
+                         + ("" if n == 1 else f" (found {found} of {n})"))
