@@ -312,7 +312,11 @@ class HandDiscretization:
     # -- uniform samples within states (the Monte Carlo of sec. 6.2.2)
     def sample_free(self, per_state: int, *, rng: np.random.Generator,
                     oversample: int = 4) -> tuple[np.ndarray, np.ndarray]:
-        """Up to ``per_state`` poses drawn uniformly in each free cell, outside contact.
+        """Up to ``per_state`` poses drawn uniformly in each free cell: outside contact when
+        the contact manifold has states of its own, else anywhere the object does not
+        overlap the hand (a cell then holds its contact poses too, as :meth:`index` maps
+        them: a cell along the hand whose only room lies within the sensors' contact
+        tolerance, where a pushed object rests, is kept rather than dropped).
 
         Returns:
             (M, 3) poses and (M,) their state index; cells entirely inside the hand get none.
@@ -328,7 +332,8 @@ class HandDiscretization:
             self.spec.trust_x_m[0] + (ix + u[:, 0]) * c,
             self.spec.trust_y_m[0] + (iy + u[:, 1]) * c,
             (k + u[:, 2]) * self.period_rad / self.theta_bins])
-        ok = ~self.world.in_contact(poses)
+        ok = (~self.world.in_contact(poses) if self.spec.contact_states
+              else self.world.overlap_free(poses))
         poses, cell = poses[ok], cell[ok]
         return _first_per_state(poses, cell, per_state)
 

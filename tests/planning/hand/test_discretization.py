@@ -69,3 +69,38 @@ def test_spec_file_errors_name_the_field(tmp_path, refused):
     assert spec.trust_x_m == (0.0, 0.5) and spec.trust_y_m == (-0.075, 0.075)
     refused(HandProblemSpec.load, "discount: 1.5\n", "discount")
     refused(HandProblemSpec.load, "trust_region: 3\n", "trust_region")
+
+
+def pushed_on_axis(world, y: float = 0.0) -> np.ndarray:
+    """(1, 3) the object resting against the hand's front on the lateral offset ``y`` (m),
+    0.3 mm clear of it (within the sensors' 1 mm contact tolerance)."""
+    lo, hi = 0.10, 0.20  # overlapping at lo, clear at hi
+    for _ in range(50):
+        mid = (lo + hi) / 2
+        lo, hi = (lo, mid) if world.overlap_free(np.array([[mid, y, 0.0]]))[0] else (mid, hi)
+    return np.array([[hi + 3e-4, y, 0.0]])
+
+
+def test_without_contact_states_a_cell_holds_the_poses_that_touch_the_hand():
+    """The ch. 7 grid (no contact states): the cell where the bottle rests when the
+    fingertips push it, in the goal on the hand's axis, has the resting poses among its
+    samples, so the model keeps it (it was dropped, and the pushed bottle mapped to the
+    sentinel, while the free samples avoided contact as with contact states)."""
+    from models.planar.world import PlanarWorld
+    from planning.hand.discretization import HandDiscretization
+
+    world = PlanarWorld.load("bottle", sensors="fingertips", error_rate=0.0)
+    pushed = pushed_on_axis(world)
+    assert world.in_contact(pushed)[0]
+    grid = HandDiscretization(world, HandProblemSpec.load("rel_ch7"))
+    cell = grid.index(pushed)[0]
+    assert cell < grid.free_count
+    poses, state = grid.sample_free(50, rng=np.random.default_rng(0))
+    assert world.overlap_free(poses).all()
+    resting = poses[state == cell]
+    assert len(resting) and world.in_contact(resting).any()
+    # with contact states the resting pose has a state of its own, and free cells stay free
+    split = HandDiscretization(world, HandProblemSpec.load("rel_ch7_contact"))
+    assert split.is_contact_state(split.index(pushed))[0]
+    poses, _ = split.sample_free(5, rng=np.random.default_rng(0))
+    assert not world.in_contact(poses).any()
