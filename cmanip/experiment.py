@@ -221,8 +221,8 @@ def _register_latdespot(studies) -> None:
     setting_option(lat, "--seed", rel.seed, "the study's seed", type=int)
     setting_option(lat, "--horizon", rel.horizon, "steps per episode", type=int)
     setting_option(lat, "--problem", rel.problem, "the problem (built-in name or YAML path): "
-                   "rel_ch7, the thesis' grid, or rel_ch7_contact, with the contact "
-                   "manifold's own states (beyond the thesis)")
+                   "rel_ch7_contact, with the contact manifold's own states (beyond the "
+                   "thesis), or rel_ch7, the thesis' grid")
     setting_option(lat, "--solve-seconds", rel.solve_seconds,
                    "point-based solver wall-time cap (s)", type=float)
     setting_option(lat, "--solve-trials", rel.solve_trials,

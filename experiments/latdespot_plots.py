@@ -38,18 +38,23 @@ def plot_rel(summary: dict, out: Path) -> None:
     save_figure(fig, out / "rel_value.png")
 
     fig, ax = plt.subplots(figsize=(5.5, 3.5))
-    for name in names:
-        rate = np.asarray(rel[name]["success_over_time"])
-        (line,) = ax.plot(np.arange(len(rate)), rate, color=COLORS.get(name),
-                          label=LABELS.get(name, name).replace("\n", " "))
-        lo, hi = rel[name]["success_rate_ci95"]
+    success_lines(ax, rel, {n: LABELS.get(n, n).replace("\n", " ") for n in names}, COLORS)
+    ax.set_ylabel("Pr(object in goal), continuous model")
+    ax.legend(loc="upper left", fontsize=8)  # the discrete planners oscillate below
+    save_figure(fig, out / "rel_success.png")
+
+
+def success_lines(ax, entries: dict, labels: dict[str, str], colors: dict[str, str]) -> None:
+    """Pr(object in goal) over the steps of an episode, one line per policy in ``labels``
+    (entries' ``success_over_time``), the last step's 95 % Wilson interval as a bar."""
+    for name, label in labels.items():
+        rate = np.asarray(entries[name]["success_over_time"])
+        (line,) = ax.plot(np.arange(len(rate)), rate, color=colors.get(name), label=label)
+        lo, hi = entries[name]["success_rate_ci95"]
         ax.errorbar([len(rate) - 1], [rate[-1]], yerr=[[rate[-1] - lo], [hi - rate[-1]]],
                     color=line.get_color(), capsize=3)
     ax.set_xlabel("step")
-    ax.set_ylabel("Pr(object in goal), continuous model")
     ax.set_ylim(0, 1)
-    ax.legend(loc="upper left", fontsize=8)  # the discrete planners oscillate below
-    save_figure(fig, out / "rel_success.png")
 
 
 SCENE_LABELS = {"rel-qmdp": "RM", "rel-sarsop": "RS", "rel-despot": "RD", "lift-qmdp": "LM",
@@ -94,11 +99,29 @@ def plot_scenes(summary: dict, out: Path) -> None:
     axes[2, 0].set_ylabel("Pr(infeasible action)")
     axes[2, 0].set_ylim(0, 1)
     save_figure(fig, out / "lat_scenes.png")
+    plot_scene_success(scenes, out / "lat_success_time.png")
     for scene in scenes:
         path = out / f"lattice_{Path(scene).stem}.npz"
         if path.exists():
             plot_lattice(np.load(path), f"{Path(scene).stem}: the lattice Lat-DESPOT asked for "
                          "in one episode", out / f"lattice_{Path(scene).stem}.png")
+
+
+def plot_scene_success(scenes: dict, path: Path) -> None:
+    """Pr(object in goal) over the episode on the continuous Lat-POMDP, one panel per
+    scene (as the thesis' Fig. 6.5b for ch. 6): where Fig. 7.4's success at the last step
+    does not show when a policy reached the goal and when an infeasible action or
+    un-modelled contact ended its episode (a trial ended so counts as out of the goal from
+    then on)."""
+    fig, axes = plt.subplots(1, len(scenes), figsize=(3.2 * len(scenes), 3.2), sharey=True,
+                             squeeze=False)
+    for ax, (scene, entries) in zip(axes[0], scenes.items(), strict=True):
+        success_lines(ax, entries, {n: SCENE_LABELS.get(n, n) for n in entries},
+                      SCENE_COLORS)
+        ax.set_title(Path(scene).stem, fontsize=10)
+    axes[0, 0].set_ylabel("Pr(object in goal), continuous")
+    axes[0, -1].legend(loc="lower right", fontsize=7)
+    save_figure(fig, path)
 
 
 def plot_lattice(data, title: str, path: Path) -> None:

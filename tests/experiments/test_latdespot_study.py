@@ -104,7 +104,8 @@ def test_scenes_and_bound_run_end_to_end(tmp_path, capsys, small_problem):
     assert set(summary["rel"]) == {"rel-qmdp", "rel-sarsop", "rel-despot"}  # no continuous
     bound = summary["bound"]["scenes"]["right_obstacles"]
     assert bound["best_lat_policy"] in entries and isinstance(bound["holds"], bool)
-    assert (out / "lat_scenes.png").is_file() and (out / "lattice_right_obstacles.png").is_file()
+    assert (out / "lat_scenes.png").is_file() and (out / "lat_success_time.png").is_file()
+    assert (out / "lattice_right_obstacles.png").is_file()
     config_out = yaml.safe_load((out / "config.yaml").read_text())
     assert config_out["part"] == "bound" and config_out["scenes"]["scenes"] == ["right_obstacles"]
     assert config_out["scenes"]["lat_despot_trials"] == 3
