@@ -319,6 +319,9 @@ def _latdespot(args: argparse.Namespace) -> int:
                   f"[{lo:.0%}, {hi:.0%}]; infeasible {r['infeasible_rate']:.0%}; "
                   f"planning median {r['planning_ms_median']:.1f} ms, "
                   f"p99 {r['planning_ms_p99']:.1f} ms")
+    for name, verdict in summary.get("hypotheses", {}).items():
+        if verdict is not None:
+            print(f"  {name}: {json.dumps(verdict.get('shown', verdict.get('holds')))}")
     if "bound" in summary:
         bound = summary["bound"]
         verdict = ("holds" if bound["holds"] else "holds within the 95 % intervals"

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from experiments.latdespot_hypotheses import hypotheses
 from experiments.latdespot_plots import plot_rel, plot_scenes
 from experiments.latdespot_scenes import (
     SceneSettings,
@@ -28,7 +29,8 @@ def run_study(part: str, settings: RelSettings, scenes: SceneSettings, out: Path
               progress: bool = True) -> dict:
     """Part ``rel``, ``scenes``, ``bound`` or ``all`` (see the module docstrings of this
     module and :mod:`experiments.latdespot_scenes`): writes ``summary.json`` (``rel``,
-    ``scenes``, ``bound`` as run) and the PNGs. The scene episodes run on ``backend``
+    ``scenes`` with its ``hypotheses`` (:mod:`experiments.latdespot_hypotheses`),
+    ``bound`` as run) and the PNGs. The scene episodes run on ``backend``
     (kept in ``out/trials.jsonl``; ``resume`` runs only the missing ones and reuses the
     solved policy in ``out``); part ``rel``'s online episodes on ``backend`` too (not
     kept). The results depend on neither."""
@@ -54,6 +56,7 @@ def run_study(part: str, settings: RelSettings, scenes: SceneSettings, out: Path
     if part in ("scenes", "bound", "all"):
         summary["scenes"] = run_scenes(settings, scenes, solved_path, out, backend=backend,
                                        resume=resume, progress=progress)
+        summary["hypotheses"] = hypotheses(summary["scenes"])
     if part in ("bound", "all"):
         summary["bound"] = bound_check(summary["rel"], summary["scenes"])
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")

@@ -102,6 +102,7 @@ def test_scenes_and_bound_run_end_to_end(tmp_path, capsys, small_problem):
     for name in ("lift-qmdp", "lift-sarsop", "lat-despot", "lat-despot-pb"):
         assert entries[name]["infeasible_rate"] == 0.0  # they check the lattice first
     assert set(summary["rel"]) == {"rel-qmdp", "rel-sarsop", "rel-despot"}  # no continuous
+    assert set(summary["hypotheses"]) == {"H2", "H3", "H4", "feasible_only"}
     bound = summary["bound"]["scenes"]["right_obstacles"]
     assert bound["best_lat_policy"] in entries and isinstance(bound["holds"], bool)
     assert (out / "lat_scenes.png").is_file() and (out / "lat_success_time.png").is_file()
