@@ -303,6 +303,27 @@ def _ignore_interrupts() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+LOCAL_RAY_ATTEMPTS = 3
+"""Starts of a local Ray node tried before giving up: Ray waits a fixed 30 s for its raylet
+to register, which a loaded 2-core machine can miss (seen in the test suite with another
+study running); a second start then succeeds."""
+
+
+def _start_local_ray(ray, workers: int) -> None:
+    """A local Ray node on the loopback interface with ``workers`` CPUs, retried when it
+    times out starting (see :data:`LOCAL_RAY_ATTEMPTS`)."""
+    for attempt in range(1, LOCAL_RAY_ATTEMPTS + 1):
+        try:
+            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
+                     _node_ip_address="127.0.0.1", object_store_memory=100 * 2**20,
+                     configure_logging=False)
+            return
+        except Exception as err:  # Ray raises a bare Exception for this timeout
+            if "timed out during startup" not in str(err) or attempt == LOCAL_RAY_ATTEMPTS:
+                raise
+            ray.shutdown()
+
+
 def _run_ray(fn, jobs, backend, finished) -> None:
     import ray  # the only import of Ray in the project
 
@@ -310,9 +331,7 @@ def _run_ray(fn, jobs, backend, finished) -> None:
     if started:
         os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
         if backend.address is None:
-            ray.init(num_cpus=backend.workers, include_dashboard=False,
-                     log_to_driver=False, _node_ip_address="127.0.0.1",
-                     object_store_memory=100 * 2**20, configure_logging=False)
+            _start_local_ray(ray, backend.workers)
         else:
             ray.init(address=backend.address, log_to_driver=False,
                      configure_logging=False)

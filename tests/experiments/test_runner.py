@@ -144,3 +144,26 @@ def test_runner_options_out_of_place_are_clear_errors(tmp_path, capsys):
         main(MPF + ["--trials", "2", "--workers", "0", "--out", str(tmp_path)])
     assert exit_.value.code == 2
     assert "must be >= 1" in capsys.readouterr().err
+
+
+def test_a_local_ray_start_that_times_out_is_tried_again():
+    from experiments.runner import LOCAL_RAY_ATTEMPTS, _start_local_ray
+
+    class SlowRay:  # times out starting, as a loaded machine can make Ray's raylet do
+        def __init__(self, failures):
+            self.failures, self.inits, self.shutdowns = failures, 0, 0
+
+        def init(self, **kwargs):
+            self.inits += 1
+            assert kwargs["_node_ip_address"] == "127.0.0.1" and kwargs["num_cpus"] == 2
+            if self.inits <= self.failures:
+                raise Exception("The current node timed out during startup.")
+
+        def shutdown(self):
+            self.shutdowns += 1
+
+    ray = SlowRay(failures=LOCAL_RAY_ATTEMPTS - 1)
+    _start_local_ray(ray, 2)
+    assert ray.inits == LOCAL_RAY_ATTEMPTS and ray.shutdowns == LOCAL_RAY_ATTEMPTS - 1
+    with pytest.raises(Exception, match="timed out"):
+        _start_local_ray(SlowRay(failures=LOCAL_RAY_ATTEMPTS), 2)
