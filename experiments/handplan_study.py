@@ -184,7 +184,8 @@ def evaluate_discrete(problem: SolvedProblem, settings: HandplanSettings, *,
     for name, policy in problem.policies.items():
         returns = simulate_returns(problem.model.pomdp, policy, problem.initial,
                                    episodes or 2 * settings.trials, settings.horizon,
-                                   rng=_rng(settings, 11, _stream(name)))
+                                   rng=_rng(settings, 11, _stream(name)),
+                                   progress=f"value on the discrete model, {name}")
         out[name] = {"discounted_value": float(returns.mean()),
                      "discounted_value_ci95": half_width(returns),
                      "episodes": len(returns)}

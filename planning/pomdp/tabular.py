@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from tqdm import tqdm
 
 ROW_SUM_TOLERANCE = 1e-6
 
@@ -81,11 +82,14 @@ def belief_update(pomdp: TabularPOMDP, belief: np.ndarray, action: int,
 
 
 def simulate_returns(pomdp: TabularPOMDP, policy, beliefs: np.ndarray, episodes: int,
-                     horizon: int, *, rng: np.random.Generator) -> np.ndarray:
+                     horizon: int, *, rng: np.random.Generator,
+                     progress: str | None = None) -> np.ndarray:
     """Discounted returns of ``policy`` (``act(belief) -> action``) on the model itself.
 
     Episode ``e`` starts from ``beliefs[e % K]`` ((K, S) initial beliefs): the state is drawn
     from it and the policy tracks it with the discrete Bayes filter for ``horizon`` steps.
+    ``progress``: the label of a progress bar over the episodes (None: no bar; an online
+    policy such as DESPOT can take tens of minutes for a few hundred episodes).
 
     Returns:
         (episodes,) returns.
@@ -93,7 +97,8 @@ def simulate_returns(pomdp: TabularPOMDP, policy, beliefs: np.ndarray, episodes:
     beliefs = np.atleast_2d(beliefs)
     S, _, n_obs = pomdp.shape
     returns = np.empty(episodes)
-    for e in range(episodes):
+    for e in tqdm(range(episodes), desc=progress, unit="episode", leave=False,
+                  disable=progress is None):
         belief = beliefs[e % len(beliefs)].copy()
         state = int(rng.choice(S, p=belief / belief.sum()))
         total, scale = 0.0, 1.0
