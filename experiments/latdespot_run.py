@@ -13,6 +13,7 @@ from experiments.latdespot_scenes import (
     SceneSettings,
     Solved,
     bound_check,
+    rel_upper_bounds,
     run_scenes,
     settings_dict,
 )
@@ -50,15 +51,19 @@ def run_study(part: str, settings: RelSettings, scenes: SceneSettings, out: Path
                          "actions": list(model.pomdp.actions),
                          "observations": len(model.pomdp.observations), **costs,
                          "sarsop_reused_from": str(solved_path) if reuse else None}}
-    if part in ("rel", "bound", "all"):
+    if part in ("rel", "all"):
         summary["rel"] = evaluate_rel(settings, model, belief, initial, policies,
-                                      backend=backend, continuous=part != "bound")
+                                      backend=backend)
     if part in ("scenes", "bound", "all"):
-        summary["scenes"] = run_scenes(settings, scenes, solved_path, out, backend=backend,
-                                       resume=resume, progress=progress)
+        bound = part in ("bound", "all")
+        summary["scenes"], on_rel = run_scenes(settings, scenes, solved_path, out,
+                                               bound=bound, backend=backend, resume=resume,
+                                               progress=progress)
         summary["hypotheses"] = hypotheses(summary["scenes"])
-    if part in ("bound", "all"):
-        summary["bound"] = bound_check(summary["rel"], summary["scenes"])
+        if bound:
+            upper = rel_upper_bounds(settings, scenes, Solved.load(solved_path), model,
+                                     belief, initial)
+            summary["bound"] = bound_check(on_rel, summary["scenes"], upper)
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     if part in ("rel", "all"):
         plot_rel(summary, out)

@@ -50,8 +50,14 @@ DESPOT's budget is a trial count per decision with a wall-clock cap (``lat_despo
 (the 0.1 s and 1 s figures).
 
 Part ``bound`` (sec. 7.3.5): the discrete-model values of Rel-SARSOP and Rel-DESPOT on
-Rel-POMDP (part ``rel``'s) against the best value of any policy on each scene's
-Lat-POMDP (Theorem 7.2: the first bounds the second).
+Rel-POMDP against the best value of any policy on each scene's Lat-POMDP. Theorem 7.2
+bounds a belief's Lat value by the same belief's Rel value, so the Rel episodes start from
+each scene's own initial belief (the conditioned one above; part ``rel``'s unconditioned
+belief is another belief: the thesis' scenes had no object inside the clutter, and one
+belief served both); they run as the scene's third model, ``rel``, kept in the same
+``trials.jsonl``. Beside the policies' values, the Rel-POMDP's guaranteed upper bounds at
+each scene's belief (QMDP's ``b . max_a Q`` and the point-based solver's corner values),
+which no Lat policy can exceed in expectation.
 """
 
 from __future__ import annotations
@@ -86,7 +92,7 @@ from planning.pomdp.despot import DespotSettings
 from planning.pomdp.generative import TabularGenerative
 from planning.pomdp.online import DespotPlanner
 from planning.pomdp.point_based import AlphaVectorPolicy
-from planning.pomdp.tabular import belief_update
+from planning.pomdp.tabular import belief_update, simulate_episode
 
 SCENES = ("empty", "right_obstacles", "left_obstacles", "cul_de_sac")
 POLICIES = ("rel-qmdp", "rel-sarsop", "rel-despot", "lift-qmdp", "lift-sarsop",
@@ -97,6 +103,11 @@ DEFAULT_POLICIES = POLICIES[:-1]
 #: Policies that plan on the continuous model and are evaluated on it alone.
 CONTINUOUS_ONLY = ("lat-despot-continuous",)
 MODELS = ("discrete", "continuous")
+#: The models an episode can run on: the two Lat-POMDPs and (part ``bound``) Rel-POMDP from
+#: the scene's belief; an episode's seed holds its index here.
+KINDS = (*MODELS, "rel")
+#: The policies part ``bound`` evaluates on Rel-POMDP (thesis sec. 7.3.5).
+BOUND_POLICIES = ("rel-sarsop", "rel-despot")
 EPISODE_STREAM = 23
 
 
@@ -104,6 +115,11 @@ EPISODE_STREAM = 23
 class SceneSettings:
     """Attributes:
         scenes: which scenes (built-in names or paths).
+        policies: which policies (:data:`POLICIES`).
+        policy_trials: ``POLICY=N`` entries: that policy's episodes per scene and model,
+            when fewer than the study's ``trials`` (the costliest ones: a 200-trial study of
+            Rel-DESPOT and Lat-DESPOT-pb would take about 28 hours on two cores; each
+            entry's ``trials`` in ``summary.json`` says how many it had).
         lat_despot_trials: DESPOT trials per Lat-DESPOT decision (None: the wall-clock cap
             alone).
         lat_despot_seconds: wall-clock cap per Lat-DESPOT decision (s).
@@ -114,6 +130,7 @@ class SceneSettings:
 
     scenes: tuple[str, ...] = SCENES
     policies: tuple[str, ...] = DEFAULT_POLICIES
+    policy_trials: tuple[str, ...] = ()
     lat_despot_trials: int | None = 30
     lat_despot_seconds: float = 5.0
     lattice_x_range_m: tuple[float, float] = (-0.10, 0.40)
@@ -127,6 +144,18 @@ class SceneSettings:
         if not self.policies or unknown:
             raise ValueError(f"policies must be drawn from {POLICIES}, got {self.policies}")
         check_budget(self.lat_despot_trials, self.lat_despot_seconds)
+        self.trials_of("rel-qmdp", 2)  # a malformed policy_trials entry fails here
+
+    def trials_of(self, policy: str, trials: int) -> int:
+        """The episodes of ``policy`` per scene and model in a study of ``trials``."""
+        for entry in self.policy_trials:
+            name, _, count = entry.partition("=")
+            if name not in POLICIES or not count.strip().isdigit() or int(count) < 2:
+                raise ValueError(f"policy_trials entries are POLICY=N with POLICY one of "
+                                 f"{POLICIES} and N >= 2, got {entry!r}")
+            if name == policy:
+                trials = min(trials, int(count))
+        return trials
 
 
 @dataclass(frozen=True)
@@ -275,6 +304,8 @@ class SceneEpisodes:
         if policy in CONTINUOUS_ONLY and kind != "continuous":
             raise ValueError(f"{policy} runs on the continuous model only")
         rng = np.random.default_rng(seed_key)
+        if kind == "rel":
+            return self.run_rel(policy, rng)
         lat, model, horizon = self.models[kind], self.model, self.rel.horizon
         gamma = lat.discount
         if kind == "continuous":
@@ -320,6 +351,23 @@ class SceneEpisodes:
                           self.lattice.asked.copy() if keep_lattice else None,
                           self.lattice.status.copy() if keep_lattice else None)
 
+    def run_rel(self, policy: str, rng: np.random.Generator) -> LatEpisode:
+        """One episode of ``policy`` (Rel-SARSOP or Rel-DESPOT) on Rel-POMDP from the
+        scene's initial belief (part ``bound``): the arm and the clutter play no part."""
+        if policy not in BOUND_POLICIES:
+            raise ValueError(f"part bound runs {BOUND_POLICIES} on Rel-POMDP, not {policy}")
+        planning = []
+
+        def act(belief: np.ndarray) -> int:
+            action, ms = self.decide(policy, self.lattice.start_point, belief, rng)
+            planning.append(ms)
+            return action
+
+        total = simulate_episode(self.model.pomdp, act, self.initial, self.rel.horizon,
+                                 rng=rng)
+        return LatEpisode(np.zeros(self.rel.horizon + 1, dtype=bool), total, False, False,
+                          np.round(planning, 2), 0, 0.0)
+
     def _in_goal(self, lat: LatticePOMDP, state: np.ndarray) -> bool:
         """The object in the goal (continuous model; the discrete one reports no success)."""
         return bool(lat.continuous and self.model.in_goal(state[:, 1:])[0])
@@ -339,7 +387,7 @@ class _Worker:
             self._scenes[scene] = SceneEpisodes(self.rel, self.scenes, self.solved,
                                                 self.model, self.belief, self.initial, scene)
         key = (self.rel.seed, EPISODE_STREAM, self.scenes.scenes.index(scene),
-               POLICIES.index(policy), MODELS.index(kind), j)
+               POLICIES.index(policy), KINDS.index(kind), j)
         figure = policy == "lat-despot" and kind == "continuous" and j == 0
         return self._scenes[scene].run(policy, kind, key, keep_lattice=figure)
 
@@ -363,9 +411,10 @@ def scene_episode(rel: RelSettings, scenes: SceneSettings, solved_path: str,
 def trial_store(rel: RelSettings, scenes: SceneSettings, out: Path, *,
                 resume: bool) -> TrialStore:
     """``out/trials.jsonl``, keyed by every setting an episode depends on (not the trial
-    count, scenes or policies, which only choose episodes: a resumed study may add some)."""
+    counts, scenes or policies, which only choose episodes: a resumed study may add some)."""
     relevant = settings_dict(rel, scenes)
     del relevant["trials"], relevant["scenes"]["scenes"], relevant["scenes"]["policies"]
+    del relevant["scenes"]["policy_trials"]
     if relevant["continuous_outside"] == "sentinel":  # stores written before the setting
         del relevant["continuous_outside"]  # existed ran the sentinel: they stay resumable
     return TrialStore(out, "latdespot-scenes", relevant, resume=resume)
@@ -423,37 +472,53 @@ def scene_entry(discrete: dict | None, continuous: dict) -> dict:
 
 
 def run_scenes(rel: RelSettings, scenes: SceneSettings, solved_path: Path, out: Path, *,
-               backend: Backend = Backend(), resume: bool = False,
-               progress: bool = True) -> dict:
-    """Every (scene, policy) pair on both models, episodes on the trial runner (each kept
-    in ``out/trials.jsonl`` as it finishes; ``resume`` runs only the missing ones; workers
-    load the solved policy from ``solved_path``); returns ``{scene: {policy: entry}}`` and
-    writes ``lattice_<scene>.npz`` (the edges Lat-DESPOT's first continuous episode asked
-    for) for the lattice figure."""
-    policies = scenes.policies
+               bound: bool = False, backend: Backend = Backend(), resume: bool = False,
+               progress: bool = True) -> tuple[dict, dict]:
+    """Every (scene, policy) pair on both models, and with ``bound`` Rel-SARSOP and
+    Rel-DESPOT on Rel-POMDP from each scene's belief; episodes on the trial runner (each
+    kept in ``out/trials.jsonl`` as it finishes; ``resume`` runs only the missing ones;
+    workers load the solved policy from ``solved_path``). Writes ``lattice_<scene>.npz``
+    (the edges Lat-DESPOT's first continuous episode asked for) for the lattice figure.
+
+    Returns:
+        ``({scene: {policy: entry}}, {scene: {policy: Rel-POMDP entry}})``, the second
+        empty without ``bound``.
+    """
+    kinds = {policy: models_of(policy) for policy in scenes.policies}
+    if bound:
+        for policy in BOUND_POLICIES:
+            kinds[policy] = (*kinds.get(policy, ()), "rel")
+    counts = {policy: scenes.trials_of(policy, rel.trials) for policy in kinds}
     # trial index outermost: a study stopped part-way has its first trials of every scene
     # and policy (summarised by ``--trials N --resume`` with N of them done)
     jobs = [(scene, policy, kind, j) for j in range(rel.trials) for scene in scenes.scenes
-            for policy in policies for kind in models_of(policy)]
+            for policy, policy_kinds in kinds.items() if j < counts[policy]
+            for kind in policy_kinds]
     results = map_trials(scene_episode,
                          [Job("/".join(map(str, job)), (rel, scenes, str(solved_path), job))
                           for job in jobs],
                          backend=backend, store=trial_store(rel, scenes, out, resume=resume),
                          desc="latdespot scenes", progress=progress)
     episodes = dict(zip(jobs, results, strict=True))
+
+    def entries(policy: str, scene: str) -> dict[str, dict]:
+        return {kind: summarise([episodes[(scene, policy, kind, j)]
+                                 for j in range(counts[policy])], kind)
+                for kind in kinds[policy]}
+
     result: dict[str, dict] = {}
+    on_rel: dict[str, dict] = {}
     for scene in scenes.scenes:
-        result[scene] = {}
-        for policy in policies:
-            by_model = {kind: summarise([episodes[(scene, policy, kind, j)]
-                                         for j in range(rel.trials)], kind)
-                        for kind in models_of(policy)}
-            result[scene][policy] = scene_entry(by_model.get("discrete"),
-                                                by_model["continuous"])
+        by_policy = {policy: entries(policy, scene) for policy in kinds}
+        result[scene] = {policy: scene_entry(by_policy[policy].get("discrete"),
+                                             by_policy[policy]["continuous"])
+                         for policy in scenes.policies}
+        if bound:
+            on_rel[scene] = {policy: by_policy[policy]["rel"] for policy in BOUND_POLICIES}
         first = episodes.get((scene, "lat-despot", "continuous", 0))
         if first is not None:
             save_lattice(out / f"lattice_{Path(scene).stem}.npz", scene, rel, scenes, first)
-    return result
+    return result, on_rel
 
 
 def lattice_figure_data(lattice: ConfigurationLattice, asked: np.ndarray,
@@ -485,27 +550,45 @@ def save_lattice(path: Path, scene_name: str, rel: RelSettings, scenes: SceneSet
     np.savez_compressed(path, **lattice_figure_data(lattice, episode.asked, episode.status))
 
 
-def bound_check(rel_values: dict, scenes: dict) -> dict:
+def rel_upper_bounds(rel: RelSettings, scenes: SceneSettings, solved: Solved,
+                     model: HandPOMDP, belief, initial: np.ndarray) -> dict[str, dict]:
+    """``{scene: {"qmdp": b . max_a Q, "corner": b . corner}}``: Rel-POMDP's upper bounds
+    at each scene's initial belief b (the unconditioned ``initial`` (S,) conditioned on the
+    scene), QMDP's and the point-based solver's (its corner values, the sawtooth bound at
+    the states)."""
+    out = {}
+    for scene in scenes.scenes:
+        lat = scene_lat_pomdp(scene, rel, scenes, model=model, belief=belief)
+        b = lat.free_at_start(initial)
+        out[scene] = {"qmdp": float(b @ lat.tabular.q_values.max(axis=1)),
+                      "corner": float(b @ solved.corner)}
+    return out
+
+
+def bound_check(on_rel: dict, scenes: dict, upper: dict) -> dict:
     """Theorem 7.2 (sec. 7.3.5): each scene's best Lat-POMDP value against the Rel-POMDP
-    values of Rel-SARSOP and Rel-DESPOT (``rel_values``: ``{policy: entry}`` of part rel,
-    discrete model). ``holds``: the best Lat value is at most both Rel values;
-    ``holds_within_ci95``: at most them up to the two 95 % half-widths (what a finite
-    number of episodes can show)."""
-    rel = {name: rel_values[name] for name in ("rel-sarsop", "rel-despot")
-           if name in rel_values}
-    out = {"rel_pomdp": {name: {"discounted_value": e["discounted_value"],
-                                "discounted_value_ci95": e["discounted_value_ci95"]}
-                         for name, e in rel.items()}, "scenes": {}}
+    values of Rel-SARSOP and Rel-DESPOT from the same belief (``on_rel``: ``{scene:
+    {policy: entry}}``, :func:`run_scenes`') and its upper bounds there (``upper``:
+    :func:`rel_upper_bounds`'). ``holds``: the best Lat value is at most both Rel values;
+    ``holds_within_ci95``: at most them up to the two 95 % half-widths (what a finite number
+    of episodes can show); ``below_upper_bounds``: at most the smaller upper bound."""
+    out = {"scenes": {}}
     for scene, entries in scenes.items():
         name = max(entries, key=lambda p: entries[p]["discounted_value"])
         best, half = entries[name]["discounted_value"], entries[name]["discounted_value_ci95"]
+        rel = on_rel[scene]
         out["scenes"][scene] = {
             "best_lat_policy": name, "best_lat_value": best, "best_lat_value_ci95": half,
+            "rel_pomdp": {policy: {key: e[key] for key in (
+                "discounted_value", "discounted_value_ci95", "planning_ms_median",
+                "planning_ms_p99", "trials")} for policy, e in rel.items()},
+            "rel_upper_bounds": upper[scene],
             "holds": all(best <= e["discounted_value"] for e in rel.values()),
             "holds_within_ci95": all(best - half <= e["discounted_value"]
-                                     + e["discounted_value_ci95"] for e in rel.values())}
-    out["holds"] = all(s["holds"] for s in out["scenes"].values())
-    out["holds_within_ci95"] = all(s["holds_within_ci95"] for s in out["scenes"].values())
+                                     + e["discounted_value_ci95"] for e in rel.values()),
+            "below_upper_bounds": best <= min(upper[scene].values())}
+    for key in ("holds", "holds_within_ci95", "below_upper_bounds"):
+        out[key] = all(s[key] for s in out["scenes"].values())
     return out
 
 

@@ -215,11 +215,9 @@ def solve_rel(settings: RelSettings, model: HandPOMDP, initial: np.ndarray, *,
 
 
 def evaluate_rel(settings: RelSettings, model: HandPOMDP, belief: GaussianBelief,
-                 initial: np.ndarray, policies: dict, *, backend: Backend = Backend(),
-                 continuous: bool = True) -> dict:
+                 initial: np.ndarray, policies: dict, *, backend: Backend = Backend()) -> dict:
     """Part ``rel``'s entries ``{policy: {...}}``: each policy's value on the discrete
-    model and (``continuous``) its success on the continuous one, and Rel-DESPOT on the
-    continuous model."""
+    model and its success on the continuous one, and Rel-DESPOT on the continuous model."""
     problem = SolvedProblem(model, initial[None, :], policies, {}, [])
     evaluation = HandplanSettings(trials=settings.trials, seed=settings.seed,
                                   horizon=settings.horizon, spec=model.spec,
@@ -233,8 +231,6 @@ def evaluate_rel(settings: RelSettings, model: HandPOMDP, belief: GaussianBelief
             rel[name]["decisions"] = len(policy.planning_ms)
         else:
             rel[name]["planning_ms_median"] = median_ms(lambda p=policy: p.act(initial), 50)
-    if not continuous:
-        return rel
     for name in policies:
         c = continuous_batch(problem, name, [belief], evaluation, precontact=False,
                              label="rel")

@@ -95,23 +95,32 @@ def simulate_returns(pomdp: TabularPOMDP, policy, beliefs: np.ndarray, episodes:
         (episodes,) returns.
     """
     beliefs = np.atleast_2d(beliefs)
-    S, _, n_obs = pomdp.shape
     returns = np.empty(episodes)
     for e in tqdm(range(episodes), desc=progress, unit="episode", leave=False,
                   disable=progress is None):
-        belief = beliefs[e % len(beliefs)].copy()
-        state = int(rng.choice(S, p=belief / belief.sum()))
-        total, scale = 0.0, 1.0
-        for _ in range(horizon):
-            action = int(policy(belief))
-            total += scale * pomdp.R[state, action]
-            row = pomdp.T[action].getrow(state)
-            state = int(rng.choice(row.indices, p=row.data / row.data.sum()))
-            observation = int(rng.choice(n_obs, p=pomdp.Z[action, state]))
-            belief, _ = belief_update(pomdp, belief, action, observation)
-            scale *= pomdp.discount
-        returns[e] = total
+        returns[e] = simulate_episode(pomdp, policy, beliefs[e % len(beliefs)], horizon,
+                                      rng=rng)
     return returns
+
+
+def simulate_episode(pomdp: TabularPOMDP, policy, belief: np.ndarray, horizon: int, *,
+                     rng: np.random.Generator) -> float:
+    """The discounted return of one episode of ``policy`` (``act(belief) -> action``) on the
+    model itself: the state drawn from ``belief`` (S,), tracked by the discrete Bayes filter
+    for ``horizon`` steps."""
+    n_obs = pomdp.shape[2]
+    belief = np.array(belief, dtype=float)
+    state = int(rng.choice(len(belief), p=belief / belief.sum()))
+    total, scale = 0.0, 1.0
+    for _ in range(horizon):
+        action = int(policy(belief))
+        total += scale * pomdp.R[state, action]
+        row = pomdp.T[action].getrow(state)
+        state = int(rng.choice(row.indices, p=row.data / row.data.sum()))
+        observation = int(rng.choice(n_obs, p=pomdp.Z[action, state]))
+        belief, _ = belief_update(pomdp, belief, action, observation)
+        scale *= pomdp.discount
+    return total
 
 
 def simulate_value(pomdp: TabularPOMDP, policy, episodes: int, horizon: int, *,

@@ -90,7 +90,8 @@ def test_scenes_and_bound_run_end_to_end(tmp_path, capsys, small_problem):
     assert main(["experiment", "latdespot", "--config", str(config), "--part", "bound",
                  "--scene", "right_obstacles", "--trials", "2", "--horizon", "4",
                  "--problem", str(small_problem), "--solve-trials", "5",
-                 "--despot-trials", "3", "--lat-despot-trials", "3", "--out", str(out)]) == 0
+                 "--despot-trials", "3", "--lat-despot-trials", "3",
+                 "--policy-trials", "lat-despot-pb=2", "rel-despot=3", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     entries = summary["scenes"]["right_obstacles"]
     assert set(entries) == {"rel-qmdp", "rel-sarsop", "rel-despot", "lift-qmdp",
@@ -101,16 +102,37 @@ def test_scenes_and_bound_run_end_to_end(tmp_path, capsys, small_problem):
             assert key in entry
     for name in ("lift-qmdp", "lift-sarsop", "lat-despot", "lat-despot-pb"):
         assert entries[name]["infeasible_rate"] == 0.0  # they check the lattice first
-    assert set(summary["rel"]) == {"rel-qmdp", "rel-sarsop", "rel-despot"}  # no continuous
+    assert "rel" not in summary  # the bound's Rel episodes start from the scene's belief
     assert set(summary["hypotheses"]) == {"H2", "H3", "H4", "feasible_only"}
     bound = summary["bound"]["scenes"]["right_obstacles"]
     assert bound["best_lat_policy"] in entries and isinstance(bound["holds"], bool)
+    assert set(bound["rel_pomdp"]) == {"rel-sarsop", "rel-despot"}
+    assert all(e["trials"] == 2 for e in bound["rel_pomdp"].values())
+    upper = bound["rel_upper_bounds"]
+    assert set(upper) == {"qmdp", "corner"}
+    assert upper["corner"] <= upper["qmdp"] + 1e-9  # the solver only tightens QMDP's
+    keys = [json.loads(line)["key"] for line in
+            (out / "trials.jsonl").read_text().splitlines()[1:]]
+    assert sorted(k for k in keys if "/rel/" in k) == [
+        f"right_obstacles/{p}/rel/{j}" for p in ("rel-despot", "rel-sarsop") for j in (0, 1)]
     assert (out / "lat_scenes.png").is_file() and (out / "lat_success_time.png").is_file()
     assert (out / "lattice_right_obstacles.png").is_file()
     config_out = yaml.safe_load((out / "config.yaml").read_text())
     assert config_out["part"] == "bound" and config_out["scenes"]["scenes"] == ["right_obstacles"]
     assert config_out["scenes"]["lat_despot_trials"] == 3
     assert "bound of sec. 7.3.5" in capsys.readouterr().out
+
+
+def test_policy_trials_give_a_costly_policy_fewer_episodes():
+    from experiments.latdespot_scenes import SceneSettings
+
+    scenes = SceneSettings(policy_trials=("lat-despot-pb=20", "rel-despot=500"))
+    assert scenes.trials_of("lat-despot-pb", 200) == 20
+    assert scenes.trials_of("rel-despot", 200) == 200  # never more than the study's
+    assert scenes.trials_of("lat-despot", 200) == 200
+    for bad in ("lat-despot-pb", "oracle=3", "lat-despot=1", "lat-despot=x"):
+        with pytest.raises(ValueError, match="POLICY=N"):
+            SceneSettings(policy_trials=(bad,))
 
 
 def test_scene_options_are_checked(tmp_path, capsys):
@@ -122,6 +144,9 @@ def test_scene_options_are_checked(tmp_path, capsys):
         main(["experiment", "latdespot", "--part", "scenes", "--policies", "oracle",
               "--out", str(out)])
     assert exit_.value.code == 2
+    assert main(["experiment", "latdespot", "--part", "scenes", "--policy-trials",
+                 "lat-despot-pb:20", "--out", str(out)]) == 2
+    assert "POLICY=N" in capsys.readouterr().err
 
 
 def test_the_policies_option_selects_the_scene_policies():
