@@ -22,6 +22,7 @@ from diagrams.herb.settings import (
     EpisodeSettings,
 )
 from planning.hand.solution import HandSolveSettings
+from planning.lattice.pomdp import OUTSIDE_MODES
 
 EPISODE = EpisodeSettings()
 SOLVER = RunConfig().solver
@@ -39,6 +40,10 @@ EPISODE_OPTIONS = (
     ("--lat-despot-model", EPISODE.lat_despot_model,
      "what Lat-DESPOT plans on: the discretised hand-relative model (the thesis) or the "
      "continuous pushing model", {"choices": LAT_DESPOT_MODELS}),
+    ("--lat-despot-outside", EPISODE.lat_despot_outside,
+     "with --lat-despot-model continuous, how the bounds value an object outside the "
+     "planning region: the discrete model's absorbing sentinel, or the steps back to the "
+     "region then the bounds there", {"choices": OUTSIDE_MODES}),
     ("--estimator", EPISODE.estimator,
      "the estimator's filter: manifold (MPF) or conventional (CPF)", {"choices": ESTIMATORS}),
     ("--outlier-gate", "none (the thesis)",
@@ -98,7 +103,7 @@ def override_episode(episode: EpisodeSettings, args: argparse.Namespace) -> Epis
         "planner_belief": "planner_belief", "on_infeasible": "on_infeasible",
         "horizon": "horizon", "particles": "particles",
         "planner": "planner", "lat_despot_seconds": "lat_despot_seconds",
-        "lat_despot_model": "lat_despot_model"})
+        "lat_despot_model": "lat_despot_model", "lat_despot_outside": "lat_despot_outside"})
     given = vars(args)
     if "lat_despot_trials" in given:
         episode = replace(episode, lat_despot_trials=given["lat_despot_trials"] or None)

@@ -30,8 +30,7 @@ def _value_interval(entry: dict) -> tuple[float, float]:
 
 
 def _success_interval(entry: dict) -> tuple[float, float]:
-    lo, hi = entry["success_rate_ci95"]
-    return lo, hi
+    return tuple(entry["success_rate_ci95"])
 
 
 MEASURES = {"by_value": _value_interval, "by_success": _success_interval}

@@ -124,7 +124,8 @@ def controller_parts(settings: EpisodeSettings, solution: HandSolution, scene: S
             raise InfeasibleStart(str(err)) from err
         lattice = ConfigurationLattice(scene, table, model.spec.action_vectors())
         pomdp = LatticePOMDP(model, lattice, UnmodelledContact(scene),
-                             inner=settings.lat_despot_model)
+                             inner=settings.lat_despot_model,
+                             outside=settings.lat_despot_outside)
         planner = LatDespotPlanner(pomdp, DespotSettings(
             max_trials=settings.lat_despot_trials, seconds=settings.lat_despot_seconds))
         return ControllerParts(planner, LatticeMotion(lattice), table.q[spec.start_point],

@@ -10,6 +10,7 @@ from models.contact import SimulationConfig
 from models.herb.tactile import TactileNoise
 from planning.hand.precontact import PreContactSettings
 from planning.lattice.planners import check_budget
+from planning.lattice.pomdp import OUTSIDE_MODES
 
 ESTIMATORS = ("mpf", "cpf")
 PLANNER_BELIEFS = ("estimator", "thesis")
@@ -48,6 +49,10 @@ class EpisodeSettings:
             ``continuous`` (beyond the thesis: the planar pushing model itself, the
             particles as they are, with the same bounds; as part ``rel``'s
             ``rel-despot-continuous``).
+        lat_despot_outside: with the ``continuous`` model, how Lat-DESPOT's bounds value
+            an object outside the planning model's region: ``sentinel`` (the discrete
+            model's absorbing -1 a step) or ``return`` (the steps back to the region, then
+            the bounds there); :mod:`planning.lattice.pomdp`.
         estimator: ``mpf`` (manifold particle filter, analytic manifold) or ``cpf``.
         estimator_outlier_log_evidence: the estimator's outlier gate (beyond the thesis;
             :class:`~estimation.particles.filters.ConventionalParticleFilter`): a reading
@@ -88,6 +93,7 @@ class EpisodeSettings:
     lat_despot_trials: int | None = 100
     lat_despot_seconds: float = 2.0
     lat_despot_model: str = "discrete"
+    lat_despot_outside: str = "sentinel"
     estimator: str = "mpf"
     estimator_outlier_log_evidence: float | None = None
     planner_belief: str = "estimator"
@@ -112,6 +118,12 @@ class EpisodeSettings:
         if self.lat_despot_model not in LAT_DESPOT_MODELS:
             raise ValueError(f"lat_despot_model must be one of {LAT_DESPOT_MODELS}, got "
                              f"{self.lat_despot_model!r}")
+        if self.lat_despot_outside not in OUTSIDE_MODES:
+            raise ValueError(f"lat_despot_outside must be one of {OUTSIDE_MODES}, got "
+                             f"{self.lat_despot_outside!r}")
+        if self.lat_despot_outside != "sentinel" and self.lat_despot_model != "continuous":
+            raise ValueError("lat_despot_outside 'return' needs lat_despot_model "
+                             "'continuous'")
         if self.policy not in POLICIES:
             raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
         if self.estimator not in ESTIMATORS:

@@ -98,3 +98,15 @@ def test_a_bad_outlier_gate_is_named_as_its_flag(command, tmp_path, capsys):
     assert main([*command, "--outlier-gate", "3", "--out", str(tmp_path / "x")]) == 2
     assert "--outlier-gate must be < 0, got 3.0" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_the_lat_despot_options_reach_the_episode_settings():
+    from cmanip.cli import build_parser
+    from cmanip.run import resolve_run
+
+    args = build_parser().parse_args(["run", "--planner", "lat-despot", "--lat-despot-model",
+                                      "continuous", "--lat-despot-outside", "return",
+                                      "--out", "x"])
+    episode = resolve_run(args).episode
+    assert (episode.planner, episode.lat_despot_model, episode.lat_despot_outside) == (
+        "lat-despot", "continuous", "return")

@@ -78,6 +78,12 @@ def test_settings_reject_bad_values():
         EpisodeSettings(estimator="ukf")
     with pytest.raises(ValueError, match="lat_despot_model"):
         EpisodeSettings(lat_despot_model="exact")
+    with pytest.raises(ValueError, match="lat_despot_outside"):
+        EpisodeSettings(lat_despot_outside="wrap")
+    with pytest.raises(ValueError, match="needs lat_despot_model 'continuous'"):
+        EpisodeSettings(lat_despot_outside="return")
+    assert EpisodeSettings(lat_despot_model="continuous",
+                           lat_despot_outside="return").lat_despot_outside == "return"
     with pytest.raises(ValueError, match="lat_despot_trials"):
         EpisodeSettings(lat_despot_trials=0)
 
