@@ -56,7 +56,8 @@ def mpf_variant_options(parser, defaults) -> None:
                    choices=CONSTRAINTS)
     setting_option(parser, "--dual-share", defaults.dual_share,
                    "the MPF's mass for its duals (fixed: phi, Alg. 4.2; density: phi scaled "
-                   "by the posterior density the duals see)", choices=DUAL_SHARES)
+                   "by the posterior density the duals see; evidence: phi scaled by the share "
+                   "of the reading the prior fails to explain)", choices=DUAL_SHARES)
     setting_option(parser, "--metric", defaults.metric,
                    "the metric of the projection's balls and steps (joint: joint space, "
                    "sec. 5.2; kernel: each joint in its kernel bandwidths)", choices=METRICS)

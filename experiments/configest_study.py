@@ -64,7 +64,8 @@ class ConfigestSettings:
         ball_radius_rad: MPF-Ball's r_b (None: three kernel bandwidths, sec. 5.2).
         constraints: the projection's constraint set, ``active`` (eq. 5.1) or ``full``
             (see :mod:`estimation.configuration.projection`).
-        dual_share: the MPF's split between its sets, ``fixed`` (Alg. 4.2) or ``density``
+        dual_share: the MPF's split between its sets, ``fixed`` (Alg. 4.2), ``density`` or
+            ``evidence``
             (see :class:`estimation.particles.filters.ManifoldParticleFilter`).
         metric: the particle and ball projections' metric, ``joint`` (sec. 5.2) or
             ``kernel`` (see :mod:`estimation.configuration.manifold`).

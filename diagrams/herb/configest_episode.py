@@ -63,7 +63,8 @@ class ConfigestEpisodeSettings:
         ball_radius_rad: MPF-Ball's r_b (None: three kernel bandwidths, thesis sec. 5.2).
         constraints: what MPF-Ball's projected duals satisfy, ``active`` (eq. 5.1) or
             ``full`` (:mod:`estimation.configuration.projection`).
-        dual_share: the MPF's split between its sets, ``fixed`` (Alg. 4.2) or ``density``
+        dual_share: the MPF's split between its sets, ``fixed`` (Alg. 4.2), ``density`` or
+            ``evidence``
             (:class:`estimation.particles.filters.ManifoldParticleFilter`).
         metric: MPF-Ball's balls and projection in ``joint`` space (sec. 5.2) or in the
             ``kernel`` bandwidths (:mod:`estimation.configuration.manifold`).

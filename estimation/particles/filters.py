@@ -24,10 +24,11 @@ flag it; :attr:`UpdateDiagnostics.log_evidence`)."""
 SAMPLING_FAILURE_LIKELIHOOD = 0.1
 """A dual draw fails when every sample has p(o | s) below this (thesis sec. 4.3.5)."""
 
-DUAL_SHARES = ("fixed", "density")
+DUAL_SHARES = ("fixed", "density", "evidence")
 """How the MPF splits the posterior between its two sets: ``fixed`` (Alg. 4.2, phi to the
-duals whatever they are) or ``density`` (phi scaled down when the duals sit where the
-prior is thinner than under the conventional set's posterior; see the MPF's docstring)."""
+duals whatever they are), ``density`` (phi scaled down when the duals sit where the
+prior is thinner than under the conventional set's posterior) or ``evidence`` (phi scaled
+by the share of the reading the prior fails to explain); see the MPF's docstring."""
 
 DENSITY_PROBES = 256
 """Posterior particles of the conventional set at which the ``density`` share evaluates
@@ -208,6 +209,13 @@ class ManifoldParticleFilter:
             set samples the manifold well; the duals get phi * min(1, D_d / D_c). Where no
             conventional particle explains the observation, p(o | s) makes D_c small and
             the duals keep phi (the CPF's failure the duals are there for).
+            ``evidence`` (not in the thesis; the idea of Augmented MCL, Thrun, Burgard and
+            Fox, Probabilistic Robotics, Table 8.3, which injects samples in proportion to
+            how poorly the particles explain the measurements, without its running
+            averages): the duals get phi * max(0, 1 - p(o | b+) / max_j p(o | d_j)), the
+            reading's evidence under the prior against the likelihood of the duals that
+            explain it best (a state on the manifold): 0 when the prior explains the
+            reading as well as the manifold does, phi when it cannot explain it at all.
         outlier_log_evidence: the gate of :class:`ConventionalParticleFilter`, on the
             conventional set's evidence, applied only when no dual explains the reading
             either (the draw failed, or the reading is free): a reading the prior does
@@ -265,6 +273,8 @@ class ManifoldParticleFilter:
                         phi *= dual_density_ratio(
                             predicted, prior_w, belief.angular, cpf, cpf_ll, dual,
                             dual_prior + dual_ll, rng=rng)
+                    elif self.dual_share == "evidence":
+                        phi *= unexplained_share(evidence, dual_ll)
                     parts_states.append(duals)
                     parts_log_w.append(dual + np.log(phi) if phi > 0 else dual - np.inf)
         elif cpf is not None and phi > 0:
@@ -294,6 +304,16 @@ def mixed_log_weights(first: np.ndarray, second: np.ndarray, phi: float) -> np.n
     over the same particles, mixed."""
     with np.errstate(divide="ignore"):
         return np.logaddexp(first + np.log1p(-phi), second + np.log(phi))
+
+
+def unexplained_share(log_evidence: float, dual_log_likelihood: np.ndarray) -> float:
+    """max(0, 1 - p(o | b+) / max_j p(o | d_j)), the ``evidence`` share's scale
+    (:class:`ManifoldParticleFilter`): ``log_evidence`` the reading's under the prior,
+    ``dual_log_likelihood`` (M,) log p(o | d_j) of the duals."""
+    best = float(np.max(dual_log_likelihood))
+    if not np.isfinite(log_evidence):
+        return 1.0
+    return float(max(0.0, -np.expm1(min(0.0, log_evidence - best))))
 
 
 def dual_density_ratio(predicted: np.ndarray, prior_w: np.ndarray, angular: tuple[int, ...],

@@ -9,6 +9,7 @@ from estimation.particles.filters import (
     ConventionalParticleFilter,
     ManifoldParticleFilter,
     dual_density_ratio,
+    unexplained_share,
 )
 from estimation.particles.kde import log_density
 from estimation.particles.logmath import log_sum_exp
@@ -122,3 +123,44 @@ def test_density_share_keeps_phi_for_duals_where_the_posterior_is_and_cuts_far_o
     assert ratio(near + 0.25) < 1.0
     with pytest.raises(ValueError, match="dual_share"):
         ManifoldParticleFilter(None, None, dual_share="some")
+
+
+def test_evidence_share_gives_duals_what_the_prior_fails_to_explain():
+    duals = np.log([0.9, 0.5, 0.1])  # the best dual explains the reading with 0.9
+    assert unexplained_share(np.log(0.9), duals) == pytest.approx(0.0)
+    assert unexplained_share(np.log(0.95), duals) == 0.0  # the prior explains it better
+    assert unexplained_share(np.log(0.09), duals) == pytest.approx(0.9)
+    assert unexplained_share(-np.inf, duals) == 1.0
+
+
+def test_with_the_evidence_share_a_well_explained_reading_is_the_cpf_update(box_world,
+                                                                            box_manifold):
+    """A contact the prior explains as well as the manifold does gives the duals no mass
+    (the fixed share gives them phi); one the prior cannot explain gets phi."""
+
+    class Recording:
+        def sample(self, observation, n, *, rng, predicted=None):
+            self.duals = box_manifold.sample(observation, n, rng=rng, predicted=predicted)
+            return self.duals
+
+    def dual_share_of(posterior, recording):
+        return np.isin(posterior.states[:, 0], recording.duals[:, 0]).mean()
+
+    rng = np.random.default_rng(2)
+    touching = ParticleBelief.uniform(box_world.sample_gaussian(
+        FINGERTIPS[0], [0.0005, 0.0005, 0.01], 100, rng=rng))
+    reading = box_world.sensing.true_contacts(FINGERTIPS)[0]
+    shares = {}
+    for share in ("fixed", "evidence"):
+        recording = Recording()
+        mpf = ManifoldParticleFilter(box_world, recording, mixing_rate=0.5, dual_share=share)
+        posterior, diagnostics = mpf.update(touching, np.zeros(3), reading, rng=rng)
+        assert diagnostics.dual_used
+        shares[share] = dual_share_of(posterior, recording)
+    assert shares["fixed"] > 0.3 and shares["evidence"] < 0.1
+    far = ParticleBelief.uniform(box_world.sample_gaussian(
+        np.array([0.4, 0.0, 0.0]), [0.01, 0.01, 0.1], 100, rng=rng))  # 40 cm from the hand
+    recording = Recording()
+    mpf = ManifoldParticleFilter(box_world, recording, mixing_rate=0.5, dual_share="evidence")
+    posterior, _ = mpf.update(far, np.zeros(3), reading, rng=rng)
+    assert dual_share_of(posterior, recording) > 0.3  # about phi: the prior explains nothing
