@@ -156,3 +156,32 @@ def plot_lattice(data, title: str, path: Path) -> None:
     ax.set_title(title, fontsize=9)
     ax.legend(loc="lower left", fontsize=7)
     save_figure(fig, path)
+
+
+def plot_bound(summary: dict, out: Path) -> None:
+    """``lat_bound.png`` (sec. 7.3.5): per scene, the best value of any policy on the
+    Lat-POMDP beside Rel-SARSOP's and Rel-DESPOT's on Rel-POMDP from the same belief
+    (95 % intervals), and Rel-POMDP's upper bounds there (QMDP's, the point-based
+    solver's corner values) as ticks: Theorem 7.2 puts the first below the others."""
+    scenes = summary["bound"]["scenes"]
+    fig, ax = plt.subplots(figsize=(8, 3.6))
+    width = 0.25
+    for i, check in enumerate(scenes.values()):
+        bars = [("best Lat-POMDP value", check["best_lat_value"], check["best_lat_value_ci95"],
+                 "tab:red")]
+        bars += [(f"{LABELS.get(name, name)} on Rel-POMDP", e["discounted_value"],
+                  e["discounted_value_ci95"], COLORS.get(name, "0.3"))
+                 for name, e in check["rel_pomdp"].items()]
+        for k, (label, value, half, color) in enumerate(bars):
+            ax.bar(i + (k - 1) * width, value, width, yerr=half, color=color, capsize=3,
+                   label=label if i == 0 else None)
+        for name, marker in (("qmdp", "v"), ("corner", "_")):
+            ax.plot([i + width], [check["rel_upper_bounds"][name]], marker, color="k",
+                    markersize=9, label=f"Rel-POMDP upper bound ({name})" if i == 0 else None)
+    ax.set_xticks(range(len(scenes)), list(scenes), fontsize=9)
+    ax.set_ylabel(f"discounted value over {summary['settings']['horizon']} steps")
+    ax.invert_yaxis()  # as Fig. 7.3 and 7.4: less negative is better, drawn shorter
+    ax.legend(fontsize=7, loc="lower right")
+    ax.set_title("Theorem 7.2: Rel-POMDP's values bound the Lat-POMDP's (sec. 7.3.5)",
+                 fontsize=10)
+    save_figure(fig, out / "lat_bound.png")

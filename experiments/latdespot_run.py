@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 from experiments.latdespot_hypotheses import hypotheses
-from experiments.latdespot_plots import plot_rel, plot_scenes
+from experiments.latdespot_plots import plot_bound, plot_rel, plot_scenes
 from experiments.latdespot_scenes import (
     SceneSettings,
     Solved,
@@ -69,4 +69,6 @@ def run_study(part: str, settings: RelSettings, scenes: SceneSettings, out: Path
         plot_rel(summary, out)
     if "scenes" in summary:
         plot_scenes(summary, out)
+    if "bound" in summary:
+        plot_bound(summary, out)
     return summary

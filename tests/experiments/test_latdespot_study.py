@@ -116,7 +116,7 @@ def test_scenes_and_bound_run_end_to_end(tmp_path, capsys, small_problem):
     assert sorted(k for k in keys if "/rel/" in k) == [
         f"right_obstacles/{p}/rel/{j}" for p in ("rel-despot", "rel-sarsop") for j in (0, 1)]
     assert (out / "lat_scenes.png").is_file() and (out / "lat_success_time.png").is_file()
-    assert (out / "lattice_right_obstacles.png").is_file()
+    assert (out / "lattice_right_obstacles.png").is_file() and (out / "lat_bound.png").is_file()
     config_out = yaml.safe_load((out / "config.yaml").read_text())
     assert config_out["part"] == "bound" and config_out["scenes"]["scenes"] == ["right_obstacles"]
     assert config_out["scenes"]["lat_despot_trials"] == 3
