@@ -38,6 +38,7 @@ from cmanip.run import add_episode_options, override_episode, override_solver, s
 from diagrams.herb.settings import POLICIES
 from experiments.closedloop_study import ClosedLoopSettings
 from experiments.handplan_study import PARTS as HANDPLAN_PARTS
+from experiments.latdespot_scenes import DEFAULT_POLICIES as LAT_DEFAULT_POLICIES
 from experiments.latdespot_scenes import POLICIES as LAT_POLICIES
 from experiments.latdespot_scenes import SCENES
 from experiments.latdespot_study import CONTINUOUS_ROLLOUTS, OUTSIDE_MODES
@@ -285,8 +286,9 @@ def resolve_latdespot(args: argparse.Namespace) -> LatDespotStudyConfig:
     if given.get("scene") is not None:
         scenes = replace(scenes, scenes=SCENES if given["scene"] == "all"
                          else (given["scene"],))
-    if given.get("policies") is not None and "all" not in given["policies"]:
-        scenes = replace(scenes, policies=tuple(given["policies"]))
+    if given.get("policies") is not None:  # all: the default set, whatever a --config says
+        scenes = replace(scenes, policies=LAT_DEFAULT_POLICIES if "all" in given["policies"]
+                         else tuple(given["policies"]))
     if given.get("lat_despot_trials") is not None:
         trials = given["lat_despot_trials"]
         scenes = replace(scenes, lat_despot_trials=trials if trials > 0 else None)

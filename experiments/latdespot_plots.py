@@ -161,8 +161,8 @@ def plot_lattice(data, title: str, path: Path) -> None:
 def plot_bound(summary: dict, out: Path) -> None:
     """``lat_bound.png`` (sec. 7.3.5): per scene, the best value of any policy on the
     Lat-POMDP beside Rel-SARSOP's and Rel-DESPOT's on Rel-POMDP from the same belief
-    (95 % intervals), and Rel-POMDP's upper bounds there (QMDP's, the point-based
-    solver's corner values) as ticks: Theorem 7.2 puts the first below the others."""
+    (95 % intervals), and the horizon's MDP value there (an upper bound of both) as a
+    tick: Theorem 7.2 puts the first below the others."""
     scenes = summary["bound"]["scenes"]
     fig, ax = plt.subplots(figsize=(8, 3.6))
     width = 0.25
@@ -175,9 +175,8 @@ def plot_bound(summary: dict, out: Path) -> None:
         for k, (label, value, half, color) in enumerate(bars):
             ax.bar(i + (k - 1) * width, value, width, yerr=half, color=color, capsize=3,
                    label=label if i == 0 else None)
-        for name, marker in (("qmdp", "v"), ("corner", "_")):
-            ax.plot([i + width], [check["rel_upper_bounds"][name]], marker, color="k",
-                    markersize=9, label=f"Rel-POMDP upper bound ({name})" if i == 0 else None)
+        ax.plot([i], [check["rel_upper_bounds"]["mdp_horizon"]], "v", color="k",
+                markersize=9, label="upper bound (the horizon's MDP value)" if i == 0 else None)
     ax.set_xticks(range(len(scenes)), list(scenes), fontsize=9)
     ax.set_ylabel(f"discounted value over {summary['settings']['horizon']} steps")
     ax.invert_yaxis()  # as Fig. 7.3 and 7.4: less negative is better, drawn shorter

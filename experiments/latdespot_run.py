@@ -61,8 +61,7 @@ def run_study(part: str, settings: RelSettings, scenes: SceneSettings, out: Path
                                                progress=progress)
         summary["hypotheses"] = hypotheses(summary["scenes"])
         if bound:
-            upper = rel_upper_bounds(settings, scenes, Solved.load(solved_path), model,
-                                     belief, initial)
+            upper = rel_upper_bounds(settings, scenes, model, belief, initial)
             summary["bound"] = bound_check(on_rel, summary["scenes"], upper)
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     if part in ("rel", "all"):

@@ -46,6 +46,19 @@ def solve_mdp(pomdp: TabularPOMDP, *, tolerance: float = 1e-6,
     raise RuntimeError(f"value iteration did not converge in {max_iterations} iterations")
 
 
+def mdp_horizon_values(pomdp: TabularPOMDP, horizon: int) -> np.ndarray:
+    """(S,) the optimal values of the underlying MDP over ``horizon`` steps (``horizon``
+    Bellman backups from V = 0): ``b . V`` bounds from above the ``horizon``-step value of
+    any policy of the POMDP from belief b (it is what a policy that saw the state would
+    get). Where every reward is at most 0 a finite horizon's value is at least the infinite
+    one's, so an episode of ``horizon`` steps is judged against this bound and not against
+    :func:`solve_mdp`'s."""
+    V = np.zeros(len(pomdp.states))
+    for _ in range(horizon):
+        V = (pomdp.R + pomdp.discount * np.column_stack([t @ V for t in pomdp.T])).max(axis=1)
+    return V
+
+
 def qmdp_policy(pomdp: TabularPOMDP, **kwargs) -> QMDPPolicy:
     """The QMDP policy of ``pomdp``."""
     return QMDPPolicy(solve_mdp(pomdp, **kwargs), pomdp.actions)

@@ -108,9 +108,9 @@ def test_scenes_and_bound_run_end_to_end(tmp_path, capsys, small_problem):
     assert bound["best_lat_policy"] in entries and isinstance(bound["holds"], bool)
     assert set(bound["rel_pomdp"]) == {"rel-sarsop", "rel-despot"}
     assert all(e["trials"] == 2 for e in bound["rel_pomdp"].values())
-    upper = bound["rel_upper_bounds"]
-    assert set(upper) == {"qmdp", "corner"}
-    assert upper["corner"] <= upper["qmdp"] + 1e-9  # the solver only tightens QMDP's
+    upper = bound["rel_upper_bounds"]["mdp_horizon"]
+    assert np.isfinite(upper) and -4.0 <= upper <= 0.0  # 4 steps of rewards in [-1, 0]
+    assert isinstance(summary["bound"]["below_upper_bounds"], bool)
     keys = [json.loads(line)["key"] for line in
             (out / "trials.jsonl").read_text().splitlines()[1:]]
     assert sorted(k for k in keys if "/rel/" in k) == [
@@ -159,6 +159,23 @@ def test_the_policies_option_selects_the_scene_policies():
     config = resolve_latdespot(args)
     assert config.scenes.policies == ("lat-despot", "lift-sarsop")
     assert config.scenes.lat_despot_trials is None  # 0: the wall-clock cap alone
+
+
+def test_policies_all_is_the_default_set_even_over_a_config(tmp_path):
+    """A study's config.yaml names the policies it ran; ``--policies all`` over it asks for
+    the default set, not the file's."""
+    from cmanip.cli import build_parser
+    from cmanip.experiment import resolve_latdespot
+    from experiments.latdespot_scenes import DEFAULT_POLICIES
+
+    config = tmp_path / "config.yaml"
+    config.write_text(yaml.safe_dump({"scenes": {"policies": ["lat-despot"]}}))
+    parse = build_parser().parse_args
+    args = parse(["experiment", "latdespot", "--config", str(config), "--out", "x"])
+    assert resolve_latdespot(args).scenes.policies == ("lat-despot",)
+    args = parse(["experiment", "latdespot", "--config", str(config), "--policies", "all",
+                  "--out", "x"])
+    assert resolve_latdespot(args).scenes.policies == DEFAULT_POLICIES
 
 
 def test_a_resumed_scenes_part_reuses_the_solved_policy_and_the_episodes(tmp_path,

@@ -5,7 +5,7 @@ import pytest
 
 from planning.pomdp.benchmarks import rock_sample, tag, tiger
 from planning.pomdp.cassandra import PomdpFormatError, read_pomdp, write_pomdp
-from planning.pomdp.qmdp import qmdp_policy
+from planning.pomdp.qmdp import mdp_horizon_values, qmdp_policy
 from planning.pomdp.tabular import belief_update, simulate_value
 
 CLASSIC_TIGER = """# the classic layout: matrices, identity, uniform, wildcards
@@ -119,3 +119,13 @@ def test_qmdp_on_tiger_and_tag():
     value, half = simulate_value(tag(), qmdp_policy(tag()), 100, 60,
                                  rng=np.random.default_rng(0))
     assert -25.0 < value < -5.0 and half < 3.0
+
+
+def test_the_mdp_horizon_values_are_the_finite_sums_and_tend_to_the_infinite_value():
+    model = tiger()
+    # fully observed tiger: 10 a step for h steps, discounted
+    assert mdp_horizon_values(model, 1) == pytest.approx([10.0, 10.0])
+    assert mdp_horizon_values(model, 3)[0] == pytest.approx(10 * (1 + 0.95 + 0.95**2))
+    assert mdp_horizon_values(model, 2000)[0] == pytest.approx(
+        qmdp_policy(model).Q[0].max(), abs=1e-3)
+    assert not mdp_horizon_values(model, 0).any()
