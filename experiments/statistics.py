@@ -10,7 +10,8 @@ def wilson_interval(successes: int, n: int, z: float = 1.96) -> tuple[float, flo
     p = successes / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return float(centre - half), float(centre + half)
+    # the interval lies in [0, 1]; at 0 or n successes rounding leaves a -1e-17 or 1 + 1e-16
+    return float(max(0.0, centre - half)), float(min(1.0, centre + half))
 
 
 def half_width(values: np.ndarray, z: float = 1.96) -> float:
