@@ -280,9 +280,9 @@ def resolve_latdespot(args: argparse.Namespace) -> LatDespotStudyConfig:
         "continuous_outside": "continuous_outside"})
     scenes = overridden(config.scenes, args, {
         "lat_despot_seconds": "lat_despot_seconds", "cache_dir": "cache"})
-    if vars(args).get("policy_trials") is not None:
-        scenes = replace(scenes, policy_trials=tuple(args.policy_trials))
     given = vars(args)
+    if given.get("policy_trials") is not None:
+        scenes = replace(scenes, policy_trials=tuple(given["policy_trials"]))
     if given.get("scene") is not None:
         scenes = replace(scenes, scenes=SCENES if given["scene"] == "all"
                          else (given["scene"],))
