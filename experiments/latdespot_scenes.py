@@ -147,18 +147,26 @@ class SceneSettings:
         if not self.policies or unknown:
             raise ValueError(f"policies must be drawn from {POLICIES}, got {self.policies}")
         check_budget(self.lat_despot_trials, self.lat_despot_seconds)
-        self.trials_of("rel-qmdp", 2)  # a malformed policy_trials entry fails here
+        self.policy_trial_counts()
 
-    def trials_of(self, policy: str, trials: int) -> int:
-        """The episodes of ``policy`` per scene and model in a study of ``trials``."""
+    def policy_trial_counts(self) -> dict[str, int]:
+        """``policy_trials`` as ``{policy: N}``.
+
+        Raises:
+            ValueError: an entry that is not ``POLICY=N`` with a known policy and N >= 2.
+        """
+        counts = {}
         for entry in self.policy_trials:
             name, _, count = entry.partition("=")
             if name not in POLICIES or not count.strip().isdigit() or int(count) < 2:
                 raise ValueError(f"policy_trials entries are POLICY=N with POLICY one of "
                                  f"{POLICIES} and N >= 2, got {entry!r}")
-            if name == policy:
-                trials = min(trials, int(count))
-        return trials
+            counts[name] = int(count)
+        return counts
+
+    def trials_of(self, policy: str, trials: int) -> int:
+        """The episodes of ``policy`` per scene and model in a study of ``trials``."""
+        return min(trials, self.policy_trial_counts().get(policy, trials))
 
 
 @dataclass(frozen=True)
