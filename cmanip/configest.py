@@ -28,6 +28,7 @@ def register(commands) -> None:
     setting_option(run, "--tactile-error-rate", "the arm file's sensor_error_rate",
                    "the tactile system's error rate during contact", type=float)
     mpf_variant_options(run, defaults)
+    proprioception_option(run, defaults)
     setting_option(run, "--outlier-gate", "none (the thesis)",
                    "both estimators' outlier gate: a reading with evidence log p(o | b+) "
                    "below this (< 0), which no dual explains, is propagated through "
@@ -63,6 +64,16 @@ def mpf_variant_options(parser, defaults) -> None:
                    "sec. 5.2; kernel: each joint in its kernel bandwidths)", choices=METRICS)
 
 
+def proprioception_option(parser, defaults) -> None:
+    """``--proprioception``: what every estimator takes from the encoders."""
+    from estimation.configuration.proprioception import PROPRIOCEPTION
+
+    setting_option(parser, "--proprioception", defaults.proprioception,
+                   "what the estimators take from the encoders (first: their first reading, "
+                   "the initial belief; steps: also each step's motion, which shows where a "
+                   "contact stopped the arm)", choices=PROPRIOCEPTION)
+
+
 def _run(args: argparse.Namespace) -> int:
     from diagrams.herb.configest_episode import (
         ConfigestEpisodeSettings,
@@ -73,7 +84,7 @@ def _run(args: argparse.Namespace) -> int:
 
     check_outlier_gate(args)
     same = ("arm", "particles", "seed", "tactile_error_rate", "constraints", "dual_share",
-            "metric")
+            "metric", "proprioception")
     settings = overridden(ConfigestEpisodeSettings(), args, {
         **{key: key for key in same}, "outlier_gate": "outlier_log_evidence"})
     if settings.tactile_error_rate is not None and not 0 <= settings.tactile_error_rate <= 1:

@@ -27,7 +27,7 @@ from cmanip.config import (
     overridden,
     write_config,
 )
-from cmanip.configest import mpf_variant_options
+from cmanip.configest import mpf_variant_options, proprioception_option
 from cmanip.options import (
     backend_of,
     runner_options,
@@ -170,6 +170,7 @@ def _register_configest(studies) -> None:
     setting_option(ce, "--ball-radius", "three kernel bandwidths",
                    "MPF-Ball's r_b (rad)", type=float)
     mpf_variant_options(ce, defaults)
+    proprioception_option(ce, defaults)
     runner_options(ce)
     ce.add_argument("--out", type=Path, required=True,
                     help="output directory (summary.json, configest.png, config.yaml, "
@@ -186,7 +187,7 @@ def _configest(args: argparse.Namespace) -> int:
     settings = overridden(load_config(ConfigestSettings, args.config), args, {
         "trials": "trials", "seed": "seed", "method": "method",
         "ball_radius": "ball_radius_rad", "constraints": "constraints",
-        "dual_share": "dual_share", "metric": "metric"})
+        "dual_share": "dual_share", "metric": "metric", "proprioception": "proprioception"})
     if "arm" in vars(args):
         settings = replace(settings, arms=ARMS if args.arm == "all" else (args.arm,))
     for arm in settings.arms:  # a bad arm file (or link) fails before any trial runs

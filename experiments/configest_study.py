@@ -35,6 +35,7 @@ from estimation.configuration.manifold import (
     check_metric,
 )
 from estimation.configuration.projection import CONSTRAINTS, METHODS
+from estimation.configuration.proprioception import check_proprioception, weigh_encoder_step
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.factory import make_filter
 from estimation.particles.filters import DUAL_SHARES
@@ -69,6 +70,9 @@ class ConfigestSettings:
             (see :class:`estimation.particles.filters.ManifoldParticleFilter`).
         metric: the particle and ball projections' metric, ``joint`` (sec. 5.2) or
             ``kernel`` (see :mod:`estimation.configuration.manifold`).
+        proprioception: what every filter takes from the encoders, ``first`` (their
+            first reading) or ``steps`` (also each step's motion; see
+            :mod:`estimation.configuration.proprioception`).
     """
 
     arms: tuple[str, ...] = ARMS
@@ -83,6 +87,7 @@ class ConfigestSettings:
     constraints: str = "active"
     dual_share: str = "fixed"
     metric: str = "joint"
+    proprioception: str = "first"
 
     def __post_init__(self):
         if self.trials < 2:
@@ -102,6 +107,7 @@ class ConfigestSettings:
             raise ValueError(f"constraints must be one of {', '.join(CONSTRAINTS)}, got "
                              f"{self.constraints!r}")
         check_metric(self.metric, self.ball_radius_rad)
+        check_proprioception(self.proprioception)
         if self.dual_share not in DUAL_SHARES:
             raise ValueError(f"dual_share must be one of {', '.join(DUAL_SHARES)}, got "
                              f"{self.dual_share!r}")
@@ -180,6 +186,9 @@ def run_filter(world: ArmWorld, trajectory, kind: str, settings: ConfigestSettin
     for t, action in enumerate(trajectory.commanded):
         start = time.perf_counter()
         belief, _ = filt.update(belief, action, trajectory.contacts[t + 1], rng=rng)
+        if settings.proprioception == "steps":
+            belief = weigh_encoder_step(world, belief, action, world.angle_difference(
+                trajectory.encoders[t + 1], trajectory.encoders[t]))
         times.append(time.perf_counter() - start)
         rmse.append(joint_rmse(world, belief, trajectory.q_true[t + 1]))
     return FilterRun(np.array(rmse), np.array(times) * 1e3,

@@ -68,6 +68,8 @@ class ConfigestEpisodeSettings:
             (:class:`estimation.particles.filters.ManifoldParticleFilter`).
         metric: MPF-Ball's balls and projection in ``joint`` space (sec. 5.2) or in the
             ``kernel`` bandwidths (:mod:`estimation.configuration.manifold`).
+        proprioception: what both estimators take from the encoders, ``first`` or
+            ``steps`` (:mod:`estimation.configuration.proprioception`).
         outlier_log_evidence: both estimators' outlier gate (None: none, the thesis;
             :class:`estimation.particles.filters.ConventionalParticleFilter`).
         tactile_error_rate: the tactile system's false-negative and in-contact
@@ -89,6 +91,7 @@ class ConfigestEpisodeSettings:
     constraints: str = "active"
     dual_share: str = "fixed"
     metric: str = "joint"
+    proprioception: str = "first"
     outlier_log_evidence: float | None = None
     tactile_error_rate: float | None = None
     seed: int = 0
@@ -162,7 +165,8 @@ def run_configest_episode(settings: ConfigestEpisodeSettings, out: Path, *,
                                outlier_log_evidence=settings.outlier_log_evidence)
             n = settings.particles - settings.dual_particles
         system = builder.AddSystem(ConfigurationEstimator(
-            world, filt, particles=n, seed=settings.seed * 100 + e + 1, period_s=period))
+            world, filt, particles=n, seed=settings.seed * 100 + e + 1, period_s=period,
+            encoder_steps=settings.proprioception == "steps"))
         system.set_name(f"estimator_{kind}")
         builder.Connect(encoders.get_output_port(), system.GetInputPort("encoders"))
         builder.Connect(commanded.get_output_port(), system.GetInputPort("commanded"))

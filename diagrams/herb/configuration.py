@@ -16,6 +16,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
 from estimation.configuration.belief import configuration_belief
+from estimation.configuration.proprioception import weigh_encoder_step
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.filters import binary_reading
 from models.arms.world import ArmWorld, ball_points
@@ -66,6 +67,7 @@ class EstimatorState:
     Attributes:
         belief: the particles, or None before the first update.
         commanded: (dof,) the last finite commanded configuration (rad).
+        encoders: (dof,) the last encoder reading (rad; NaN before the first).
         contact_updates: updates so far with a contact reading.
         rejected_updates: updates whose encoders (before the first), commanded
             configuration or readings held a NaN or infinity.
@@ -73,6 +75,7 @@ class EstimatorState:
 
     belief: ParticleBelief | None
     commanded: np.ndarray
+    encoders: np.ndarray
     contact_updates: int = 0
     rejected_updates: int = 0
 
@@ -103,19 +106,22 @@ class ConfigurationEstimator(LeafSystem):
         particles: how many particles the belief holds.
         seed: seeds the initial belief and each update (``(seed, step)``).
         period_s: update period (s).
+        encoder_steps: also weigh each update's encoder step (the ``steps``
+            proprioception of :mod:`estimation.configuration.proprioception`).
     """
 
     def __init__(self, world: ArmWorld, filt, *, particles: int, seed: int,
-                 period_s: float):
+                 period_s: float, encoder_steps: bool = False):
         super().__init__()
         self._world, self._filter = world, filt
         self._particles, self._seed, self._period = particles, seed, period_s
+        self._encoder_steps = encoder_steps
         dof = world.dof
         self._encoders = self.DeclareVectorInputPort("encoders", dof)
         self._commanded = self.DeclareVectorInputPort("commanded", dof)
         self._contact = self.DeclareVectorInputPort("contact", world.sensor_count)
         self._state = self.DeclareAbstractState(AbstractValue.Make(
-            EstimatorState(None, np.zeros(dof))))
+            EstimatorState(None, np.zeros(dof), np.full(dof, np.nan))))
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
         self.DeclareAbstractOutputPort(
             "belief", lambda: AbstractValue.Make(ParticleBelief.uniform(np.zeros((1, dof)),
@@ -139,13 +145,18 @@ class ConfigurationEstimator(LeafSystem):
         elif current.belief is None:
             states = self._world.initial_belief_states(encoders, self._particles, rng=rng)
             new = EstimatorState(ParticleBelief.uniform(states, self._world.angular),
-                                 commanded, 0, current.rejected_updates)
+                                 commanded, encoders, 0, current.rejected_updates)
         else:
             readings = binary_reading(self._contact.Eval(context))
             finite = readings.dtype == bool  # NaN readings: the filter leaves them out
-            belief, _ = self._filter.update(current.belief, commanded - current.commanded,
-                                            readings, rng=rng)
+            action = commanded - current.commanded
+            belief, _ = self._filter.update(current.belief, action, readings, rng=rng)
+            if self._encoder_steps:  # a non-finite reading or last reading: not weighed
+                belief = weigh_encoder_step(self._world, belief, action,
+                                            self._world.angle_difference(
+                                                encoders, current.encoders))
             new = EstimatorState(belief, commanded,
+                                 encoders if np.isfinite(encoders).all() else current.encoders,
                                  current.contact_updates + int(finite and readings.any()),
                                  current.rejected_updates + int(not finite))
         state.get_mutable_abstract_state(0).set_value(new)

@@ -199,6 +199,11 @@ class ArmWorld:
         """Planar angles wrapped to [-pi, pi); WAM joints clipped to their limits."""
         return wrap_angle(q) if self.model.continuous else np.clip(q, self.lower, self.upper)
 
+    def angle_difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """``a - b`` of configurations (rad): wrapped for planar joints."""
+        difference = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
+        return wrap_angle(difference) if self.model.continuous else difference
+
     def project_free(self, q: np.ndarray) -> np.ndarray:
         """The frictionless projection out of inter-penetration (thesis sec. 5.4.1).
 
@@ -285,6 +290,23 @@ class ArmWorld:
                          lit * np.log(f0) + (self.sensor_count - lit) * np.log1p(-f0))
         deep = d < -(PENETRATION_TOLERANCE_M + self.spec.press_depth_m)
         return log_p + deep.sum(axis=1) * np.log(e)
+
+    def encoder_step_log_likelihood(self, states: np.ndarray, action: np.ndarray,
+                                    encoder_step: np.ndarray) -> np.ndarray:
+        """(K,) log p(o_q,t - o_q,t-1 | q_t): the encoders' step since the last reading
+        against the states' (K, dof) predicted step of the actual configuration,
+        ``Pi(q_t) - Pi(q_t - a_t)`` (the commanded motion ``action`` (dof,) rad, where a
+        contact stops or deflects the arm). The constant offset cancels in the step; the
+        noise ``eps_t - eps_t-1`` of two readings uniform in the r_q-ball is taken as
+        Gaussian with its variance, ``2 r_q^2 / (dof + 2)`` per joint. Consecutive steps
+        share a reading's noise, so a run of them counts it twice: a known approximation,
+        preferred to carrying each particle's reading history."""
+        states = np.atleast_2d(states)
+        before = self.project_free(self.normalise(states - np.asarray(action)[None]))
+        predicted = self.angle_difference(self.project_free(states), before)
+        residual = self.angle_difference(np.asarray(encoder_step)[None], predicted)
+        variance = 2.0 * self.spec.proprio_noise_radius_rad ** 2 / (self.dof + 2)
+        return -0.5 * (residual ** 2).sum(axis=1) / max(variance, 1e-12)
 
     def sample_observation(self, states: np.ndarray, u: np.ndarray) -> np.ndarray:
         """(K, S) readings at the states' actual configurations: each flipped when ``u``

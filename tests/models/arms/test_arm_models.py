@@ -139,3 +139,36 @@ def test_bad_arm_files_name_the_file_and_field(tmp_path):
     bad.write_text(open(ArmSpec.load("2dof").source).read().replace("steps: 180", "steps: 0"))
     with pytest.raises(ConfigError, match=r"trajectory\[0\]\.steps"):
         ArmSpec.load(bad)
+
+
+def test_encoder_steps_weigh_where_a_contact_stopped_the_arm():
+    """The encoders' step is free of the offset: out of contact every free state explains
+    it alike; where the obstacle stopped the arm, the true state explains it and a state
+    the command moved freely does not."""
+    from estimation.configuration.proprioception import weigh_encoder_step
+    from estimation.particles.belief import ParticleBelief
+
+    w = world("3dof")
+    run = w.simulate(rng=np.random.default_rng(4))
+    moved = w.angle_difference(run.q_true[1:], run.q_true[:-1])
+    stopped = np.linalg.norm(w.angle_difference(moved, run.commanded), axis=1)
+    t = int(np.argmax(stopped))
+    assert stopped[t] > 0.02
+    step = w.angle_difference(run.encoders[t + 1], run.encoders[t])
+    candidates = w.normalise(run.q_free[t + 1] + np.random.default_rng(6).normal(
+        0.0, 0.6, (200, 3)))
+    free_twice = ~w.in_contact(candidates) & ~w.in_contact(candidates - run.commanded[t])
+    states = np.array([run.q_free[t + 1], candidates[np.flatnonzero(free_twice)[0]]])
+    log_p = w.encoder_step_log_likelihood(states, run.commanded[t], step)
+    assert log_p[0] > log_p[1] + 2  # a 0.03 rad stop against noise of sd 0.03 rad
+    free = int(np.argmin(stopped))
+    free_states = w.normalise(run.q_free[free + 1] + np.random.default_rng(5).normal(
+        0.0, 0.01, (5, 3)))
+    if not w.in_contact(free_states).any():
+        free_step = w.angle_difference(run.encoders[free + 1], run.encoders[free])
+        log_free = w.encoder_step_log_likelihood(free_states, run.commanded[free], free_step)
+        np.testing.assert_allclose(log_free, log_free[0])
+    belief = ParticleBelief.uniform(states, w.angular)
+    weighed = weigh_encoder_step(w, belief, run.commanded[t], step)
+    np.testing.assert_allclose(weighed.weights, np.exp(log_p) / np.exp(log_p).sum())
+    assert weigh_encoder_step(w, belief, run.commanded[t], np.full(3, np.nan)) is belief
