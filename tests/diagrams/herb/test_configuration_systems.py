@@ -112,3 +112,38 @@ def test_estimator_counts_and_leaves_out_non_finite_inputs():
     shift = wrap_angle(np.asarray(moved.belief.states) - np.asarray(first.states))
     assert np.isfinite(shift).all()
     assert np.allclose(np.median(shift, axis=0), [0.2, 0.0], atol=0.02)  # not resampled
+
+
+def test_estimator_weighs_each_encoder_step_and_skips_a_non_finite_one():
+    """With ``encoder_steps`` the estimator's update is the filter's, then the encoders'
+    step weighs it (the same particles as without); a NaN reading is not weighed and the
+    last finite reading is kept for the next step."""
+    world = two_link()
+    start = np.array(world.spec.start_rad)
+    systems, simulators = [], []
+    for steps in (False, True):
+        system = ConfigurationEstimator(world, make_filter("cpf", world), particles=100,
+                                        seed=0, period_s=0.1, encoder_steps=steps)
+        context = system.CreateDefaultContext()
+        system.GetInputPort("encoders").FixValue(context, start)
+        system.GetInputPort("commanded").FixValue(context, start)
+        system.GetInputPort("contact").FixValue(context, [0.0])
+        simulator = Simulator(system, context)
+        simulator.AdvanceTo(0.05)
+        system.GetInputPort("commanded").FixValue(simulator.get_context(), start + [0.3, 0])
+        system.GetInputPort("encoders").FixValue(simulator.get_context(), start + [0.1, 0])
+        simulator.AdvanceTo(0.15)
+        systems.append(system)
+        simulators.append(simulator)
+    plain, weighed = (s.get_context().get_abstract_state(0).get_value() for s in simulators)
+    np.testing.assert_array_equal(plain.belief.states, weighed.belief.states)
+    expected = world.encoder_step_log_likelihood(np.asarray(plain.belief.states),
+                                                 np.array([0.3, 0.0]), np.array([0.1, 0.0]))
+    np.testing.assert_allclose(weighed.belief.log_weights, expected - expected.max(), atol=1e-9)
+    np.testing.assert_allclose(weighed.encoders, start + [0.1, 0])
+    context = simulators[1].get_context()
+    systems[1].GetInputPort("encoders").FixValue(context, np.full(2, np.nan))
+    simulators[1].AdvanceTo(0.25)
+    state = context.get_abstract_state(0).get_value()
+    assert np.ptp(state.belief.log_weights) == 0.0  # resampled, then not weighed
+    np.testing.assert_allclose(state.encoders, start + [0.1, 0])
