@@ -56,7 +56,8 @@ def _faults(trials: int, seed: int, progress: bool) -> dict:
     outcomes = faults["fault_outcomes"]
     print(f"faults: {faults['faults_injected']} injected, {faults['faults_recovered']} "
           f"recovered by the robust filters ({faults['faults_recovered_plain']} by the "
-          f"thesis' filters), {faults['faults_non_finite']} with a non-finite estimate; "
+          f"thesis' filters; {faults['faults_recovered_first_draw']} against one clean "
+          f"draw alone), {faults['faults_non_finite']} with a non-finite estimate; "
           f"{faults['faults_reported']} of {faults['faults_non_finite_input']} non-finite "
           f"inputs reported")
     by = {}

@@ -6,9 +6,14 @@ steps. The particle filters run so both as the thesis has them and robust, with 
 gate (a reading with evidence log p(o | b+) below :data:`OUTLIER_GATE` that no dual
 explains either is propagated through, not weighed), each against its own clean run. A
 fault is *recovered* when the faulty run never produced a non-finite estimate and its
-error over the last quarter of the run is at most ``max(1.5 x clean, clean + tol)``: the
-estimator came back to where the clean run is, give or take what a different draw of the
-same filter gives.
+error over the last quarter of the run is at most ``max(1.5 x clean, clean + tol,
+worst)``, ``clean`` the median and ``worst`` the largest of that error over
+:data:`CLEAN_DRAWS` clean runs of the filter with different random numbers: the estimator
+came back to where the clean runs are, give or take what a different draw of the same
+filter gives (measured: on the MPF study's first push, MPF-AM's last-quarter error over
+eight clean draws spans 0.3 to 3.8 cm). The rule against the one clean run with the faulty
+run's own random numbers (``*_first_draw``) is reported too; a particle filter's error
+after the stretch is then mostly the luck of one draw against another.
 
 Estimators and faults:
 
@@ -60,6 +65,8 @@ FAULT_STEPS = 10
 SMOOTHER_FAULT_S = 1.0
 """Length of a smoother fault (s)."""
 RECOVERY_FACTOR = 1.5
+CLEAN_DRAWS = 5
+"""Clean runs of each particle filter per experiment, with different random numbers."""
 REJECTED = {"nan-action": "action", "nan-reading": "observation"}
 """The input a filter must report rejecting under each NaN fault."""
 OUTLIER_GATE = -30.0
@@ -86,9 +93,13 @@ class FaultOutcome:
         surprised: some reading of the fault had evidence below :data:`SURPRISE` (None for
             the smoother): a reading the belief did not expect, which a caller can flag;
             a stuck sensor or a burst of plausible readings need not be one.
-        error_during, error_after, clean_after: mean error during the fault and over the
-            last quarter of the run, faulty and clean (m or rad).
+        error_during, error_after: mean error of the faulty run during the fault and over
+            the last quarter of the run (m or rad).
+        clean_after, clean_after_worst: the median and the largest over the clean draws
+            of the last-quarter error (m or rad).
+        clean_after_first_draw: the clean run with the faulty run's random numbers.
         recovered: finite and error_after within the recovery rule.
+        recovered_first_draw: the same against ``clean_after_first_draw`` alone.
     """
 
     estimator: str
@@ -101,12 +112,16 @@ class FaultOutcome:
     error_during: float
     error_after: float
     clean_after: float
+    clean_after_worst: float
+    clean_after_first_draw: float
     recovered: bool
+    recovered_first_draw: bool
 
 
-def _recovered(finite: bool, after: float, clean: float, tol: float) -> bool:
+def _recovered(finite: bool, after: float, clean: float, tol: float,
+               worst: float = 0.0) -> bool:
     return bool(finite and np.isfinite(after)
-                and after <= max(RECOVERY_FACTOR * clean, clean + tol))
+                and after <= max(RECOVERY_FACTOR * clean, clean + tol, worst))
 
 
 def inject(actions: np.ndarray, readings: np.ndarray, fault: str, start: int
@@ -155,18 +170,25 @@ def _filter_run(filt, belief: ParticleBelief, actions, readings, error, rng):
     return np.array(errors), flags
 
 
-def _outcome(estimator, fault, trial, clean, faulty, window, flags, tol,
+def _last_quarter(errors: np.ndarray) -> float:
+    return float(np.mean(errors[len(errors) - len(errors) // 4:]))
+
+
+def _outcome(estimator, fault, trial, cleans: list[np.ndarray], faulty, window, flags, tol,
              robust: bool = False) -> FaultOutcome:
-    quarter = slice(len(clean) - len(clean) // 4, len(clean))
+    """``cleans``: the clean runs' errors, the first with the faulty run's random numbers."""
     finite = bool(np.all(np.isfinite(faulty)))
     steps = range(window.start, window.stop)
     reported = all(flags[t][0] == REJECTED[fault] for t in steps) if fault in REJECTED \
         else None
     surprised = any(flags[t][1] for t in steps) if flags else None
-    after, clean_after = float(np.mean(faulty[quarter])), float(np.mean(clean[quarter]))
+    after = _last_quarter(faulty)
+    clean_afters = [_last_quarter(c) for c in cleans]
+    median, worst, first = float(np.median(clean_afters)), max(clean_afters), clean_afters[0]
     return FaultOutcome(estimator, fault, trial, robust, finite, reported, surprised,
-                        float(np.mean(faulty[window])), after, clean_after,
-                        _recovered(finite, after, clean_after, tol))
+                        float(np.mean(faulty[window])), after, median, worst, first,
+                        _recovered(finite, after, median, tol, worst),
+                        _recovered(finite, after, first, tol))
 
 
 def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray,
@@ -176,18 +198,21 @@ def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray
     clean run.
 
     Args:
-        make: ``(robust: bool) -> (filter, belief, rng)``, the same seed every call.
+        make: ``(robust: bool, draw: int) -> (filter, belief, rng)``, the same seed every
+            call with the same draw (draw 0: the faulty runs' random numbers).
         actions: (T, a). readings: (T, S) bool. error: ``(belief, t) -> float``.
     """
     outcomes = []
     for robust in (False, True):
-        filt, belief, rng = make(robust)
-        clean, _ = _filter_run(filt, belief, actions, list(readings), error, rng)
+        cleans = []
+        for draw in range(CLEAN_DRAWS):
+            filt, belief, rng = make(robust, draw)
+            cleans.append(_filter_run(filt, belief, actions, list(readings), error, rng)[0])
         for fault in FILTER_FAULTS:
-            filt, belief, rng = make(robust)
+            filt, belief, rng = make(robust, 0)
             a, r, window = inject(actions, readings, fault, start)
             errors, flags = _filter_run(filt, belief, a, r, error, rng)
-            outcomes.append(_outcome(label, fault, trial, clean, errors, window, flags, tol,
+            outcomes.append(_outcome(label, fault, trial, cleans, errors, window, flags, tol,
                                      robust))
     return outcomes
 
@@ -212,8 +237,8 @@ def hand_faults(trials: int, *, seed: int = 0, filters: tuple[FilterSpec, ...] =
                 return belief.rmse(truth.true_states[t])[0]
 
             for f, spec in enumerate(filters):
-                def make(robust, f=f, spec=spec, truth=truth, trial=trial):
-                    rng = np.random.default_rng([seed, trial, 1, f])
+                def make(robust, draw, f=f, spec=spec, truth=truth, trial=trial):
+                    rng = np.random.default_rng([seed, trial, 1, f] + [draw] * (draw > 0))
                     filt = build_hand_filter(world, settings, spec, truth.mean, truth.std,
                                              truth.action, seed, rng,
                                              outlier_log_evidence=OUTLIER_GATE if robust
@@ -248,8 +273,8 @@ def arm_faults(trials: int, *, seed: int = 0, progress: bool = True) -> list[Fau
             return joint_rmse(world, belief, trajectory.q_true[t + 1])
 
         for f, kind in enumerate(ARM_FILTERS):
-            def make(robust, f=f, kind=kind, trajectory=trajectory, trial=trial):
-                rng = np.random.default_rng((seed, 31, trial, 1 + f))
+            def make(robust, draw, f=f, kind=kind, trajectory=trajectory, trial=trial):
+                rng = np.random.default_rng([seed, 31, trial, 1 + f] + [draw] * (draw > 0))
                 filt, n, _ = build_filter(world, kind, settings,
                                           outlier_log_evidence=OUTLIER_GATE if robust
                                           else None)
@@ -316,8 +341,8 @@ def smoother_faults(steps: PushingSteps, polygon: np.ndarray, *, progress: bool 
         window = slice(window.start - shift, window.stop - shift)
         reported = rejected > 0 if fault.startswith("nan-") else None
         # a NaN left in an estimate would make errors NaN: finite is checked on them
-        outcome = _outcome("smoother", fault, 0, clean, errors, window, [], TOLERANCE[
-            "smoother"])
+        outcome = _outcome("smoother", fault, 0, [clean], errors, window, [], TOLERANCE[
+            "smoother"])  # the smoother draws nothing: one clean run is every draw
         outcomes.append(replace(outcome, reported=reported))
     return outcomes
 
@@ -338,7 +363,9 @@ def simulated_push(seed: int = 0) -> tuple[PushingSteps, np.ndarray]:
 def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True) -> dict:
     """Every estimator under every fault: ``faults_injected`` (each fault once),
     ``faults_recovered`` (the robust filters, the smoother as it is),
-    ``faults_recovered_plain`` (the filters as the thesis has them), ``faults_non_finite``
+    ``faults_recovered_plain`` (the filters as the thesis has them),
+    ``faults_recovered_first_draw`` (the robust filters against one clean draw),
+    ``faults_non_finite``
     (runs with a NaN or infinite estimate, either way), ``faults_reported`` of
     ``faults_non_finite_input`` (the faults feeding NaN or infinite inputs, which the
     estimator must report rejecting) and each outcome."""
@@ -354,6 +381,7 @@ def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True) -> 
         "faults_injected": len(counted),
         "faults_recovered": sum(o.recovered for o in counted),
         "faults_recovered_plain": sum(o.recovered for o in plain),
+        "faults_recovered_first_draw": sum(o.recovered_first_draw for o in counted),
         "faults_non_finite": sum(not o.finite for o in outcomes),
         "faults_non_finite_input": len(detectable),
         "faults_reported": sum(bool(o.reported) for o in detectable),
