@@ -21,7 +21,9 @@ infeasible start or push (the message says why).
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 
 from cmanip import bench, configest, experiment, pomdp, push, run, scenes, simulate
 from cmanip.options import HelpFormatter
@@ -40,7 +42,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def interruptible() -> None:
+    """Let Ctrl-C (SIGINT) reach the command even when it was started with SIGINT ignored,
+    as a shell script's ``cmanip ... &`` is: a study so started stops cleanly on
+    ``kill -INT``, keeping its finished trials, rather than running on."""
+    if (threading.current_thread() is threading.main_thread()
+            and signal.getsignal(signal.SIGINT) is signal.SIG_IGN):
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 def main(argv: list[str] | None = None) -> int:
+    interruptible()
     args = build_parser().parse_args(argv)
     try:
         return args.handler(args)

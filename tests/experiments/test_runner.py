@@ -113,11 +113,17 @@ def test_a_study_killed_part_way_and_resumed_gives_the_uninterrupted_summary(tmp
     assert main(args + ["--out", str(killed), "--resume", "--seed", "5"]) == 2
 
 
-def test_ctrl_c_stops_the_workers_keeps_the_finished_trials_and_says_how_to_resume(tmp_path):
+@pytest.mark.parametrize("started_in_background", [False, True])
+def test_ctrl_c_stops_the_workers_keeps_the_finished_trials_and_says_how_to_resume(
+        tmp_path, started_in_background):
+    """Also when started with SIGINT ignored, as a shell script's ``cmanip ... &``."""
     out = tmp_path / "mpf"
+    ignore = (lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)) \
+        if started_in_background else None
     child = subprocess.Popen(
         [sys.executable, "-m", "cmanip.cli", *MPF, "--trials", "200", "--workers", "2",
-         "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+         "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=ignore)
     trials = out / TRIALS_FILE
     _wait_for_trials(child, trials, 1)
     child.send_signal(signal.SIGINT)
