@@ -79,3 +79,22 @@ def test_the_beyond_thesis_variants_are_settings_and_bad_ones_clear_errors(tmp_p
               "--out", str(tmp_path / "o")])
     assert exit_.value.code == 2
     assert "--dual-share: invalid choice" in capsys.readouterr().err
+
+
+def test_h1_is_judged_on_the_paired_difference_to_the_cpf():
+    from experiments.configest_study import hypotheses
+
+    def entry(mean, ci, vs=None, vs_ci=None):
+        e = {"rmse_rad_mean": mean, "rmse_rad_mean_ci95": ci}
+        return e if vs is None else {**e, "vs_cpf_rad_mean": vs, "vs_cpf_rad_mean_ci95": vs_ci}
+
+    # consistently 0.14 below the CPF on the same experiments, inside the unpaired spread
+    arm = {"cpf": entry(1.55, 0.12), "mpf-uniform": entry(3.7, 0.2, 2.1, 0.2),
+           "mpf-particle": entry(1.41, 0.16, -0.13, 0.22),
+           "mpf-ball": entry(1.40, 0.11, -0.14, 0.13)}
+    h = hypotheses({"wam": arm})
+    assert h["H1_mpf_beats_cpf"] == {"wam": True}
+    assert h["H1_mpf_beats_cpf_unpaired"] == {"wam": False}
+    arm["mpf-ball"] = entry(1.40, 0.11, -0.14, 0.15)
+    assert hypotheses({"wam": arm})["H1_mpf_beats_cpf"] == {"wam": False}
+    assert hypotheses({"wam": arm})["H4_ball_best_on_wam"]
