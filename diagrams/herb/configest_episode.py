@@ -33,6 +33,7 @@ from diagrams.herb.configuration import ArmBeliefDrawer, ConfigurationEstimator,
 from diagrams.herb.station import add_herb_plant, add_meshcat
 from diagrams.tactile_sensor import TactileSensor
 from estimation.configuration.manifold import ProjectionManifold
+from estimation.configuration.proprioception import check_proprioception
 from estimation.particles.factory import make_filter
 from models.arms.spec import ArmSpec
 from models.arms.world import ArmWorld
@@ -96,6 +97,9 @@ class ConfigestEpisodeSettings:
     tactile_error_rate: float | None = None
     seed: int = 0
     sim: SimulationConfig = field(default_factory=SimulationConfig)
+
+    def __post_init__(self):
+        check_proprioception(self.proprioception)
 
 
 def commanded_trajectory(spec: ArmSpec, seconds_per_step: float) -> PiecewisePolynomial:

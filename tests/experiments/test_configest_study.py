@@ -98,3 +98,14 @@ def test_h1_is_judged_on_the_paired_difference_to_the_cpf():
     arm["mpf-ball"] = entry(1.40, 0.11, -0.14, 0.15)
     assert hypotheses({"wam": arm})["H1_mpf_beats_cpf"] == {"wam": False}
     assert hypotheses({"wam": arm})["H4_ball_best_on_wam"]
+
+
+def test_an_unknown_proprioception_is_a_clear_error(capsys):
+    from diagrams.herb.configest_episode import ConfigestEpisodeSettings
+
+    for settings in (ConfigestSettings, ConfigestEpisodeSettings):
+        with pytest.raises(ValueError, match="proprioception must be one of first, steps"):
+            settings(proprioception="all")
+    with pytest.raises(SystemExit) as exit_:
+        main(["configest", "run", "--proprioception", "all", "--out", "x"])
+    assert exit_.value.code == 2 and "--proprioception" in capsys.readouterr().err
