@@ -15,6 +15,13 @@ eight clean draws spans 0.3 to 3.8 cm). The rule against the one clean run with 
 run's own random numbers (``*_first_draw``) is reported too; a particle filter's error
 after the stretch is then mostly the luck of one draw against another.
 
+The rule has a false-alarm rate of its own: a faulty run is, after its stretch, one more
+draw of the filter, and a draw with no lasting harm still ends above the largest of
+:data:`CLEAN_DRAWS` others about once in ``CLEAN_DRAWS + 1`` (less, for the margins). So
+each filter also runs a *sham* (:data:`SHAM`): one more clean draw, judged by the same
+rule against the same clean draws; ``sham_recovered`` of ``sham_runs`` is the rate at
+which the rule passes a run that no fault touched, the baseline for ``faults_recovered``.
+
 Estimators and faults:
 
 - the hand-relative filters of ch. 4 (CPF, MPF with the AM, RS and TR manifolds) on the
@@ -60,6 +67,8 @@ FILTER_FAULTS = ("nan-action", "nan-reading", "all-sensors-on", "stuck-on", "stu
                  "contradicting")
 SMOOTHER_FAULTS = ("nan-force", "nan-camera", "teleported-camera", "dropped-frames",
                    "stuck-contact")
+SHAM = "none"
+"""The control: no fault, a fresh draw judged like the faulty runs."""
 FAULT_STEPS = 10
 """Length of a fault (updates); ``contradicting`` lasts twice as long."""
 SMOOTHER_FAULT_S = 1.0
@@ -193,9 +202,9 @@ def _outcome(estimator, fault, trial, cleans: list[np.ndarray], faulty, window, 
 
 def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray,
                      start: int, error, trial: int, tol: float) -> list[FaultOutcome]:
-    """Every fault of :data:`FILTER_FAULTS` from update ``start``, for the filter ``make``
-    builds, as the thesis has it and robust (with the outlier gate), each against its own
-    clean run.
+    """Every fault of :data:`FILTER_FAULTS` from update ``start``, and the sham, for the
+    filter ``make`` builds, as the thesis has it and robust (with the outlier gate), each
+    against its own clean runs.
 
     Args:
         make: ``(robust: bool, draw: int) -> (filter, belief, rng)``, the same seed every
@@ -203,11 +212,16 @@ def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray
         actions: (T, a). readings: (T, S) bool. error: ``(belief, t) -> float``.
     """
     outcomes = []
+    window = slice(start, min(start + FAULT_STEPS, len(actions)))
     for robust in (False, True):
         cleans = []
         for draw in range(CLEAN_DRAWS):
             filt, belief, rng = make(robust, draw)
             cleans.append(_filter_run(filt, belief, actions, list(readings), error, rng)[0])
+        filt, belief, rng = make(robust, CLEAN_DRAWS)
+        errors, flags = _filter_run(filt, belief, actions, list(readings), error, rng)
+        outcomes.append(_outcome(label, SHAM, trial, cleans, errors, window, flags, tol,
+                                 robust))
         for fault in FILTER_FAULTS:
             filt, belief, rng = make(robust, 0)
             a, r, window = inject(actions, readings, fault, start)
@@ -365,7 +379,8 @@ def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True) -> 
     ``faults_recovered`` (the robust filters, the smoother as it is),
     ``faults_recovered_plain`` (the filters as the thesis has them),
     ``faults_recovered_first_draw`` (the robust filters against one clean draw),
-    ``faults_non_finite``
+    ``sham_runs`` and ``sham_recovered`` (the control, both filter variants: the rule's
+    pass rate without a fault), ``faults_non_finite``
     (runs with a NaN or infinite estimate, either way), ``faults_reported`` of
     ``faults_non_finite_input`` (the faults feeding NaN or infinite inputs, which the
     estimator must report rejecting) and each outcome."""
@@ -373,11 +388,15 @@ def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True) -> 
     outcomes = (hand_faults(trials, seed=seed, progress=progress)
                 + arm_faults(trials, seed=seed, progress=progress)
                 + smoother_faults(steps, polygon, progress=progress))
+    shams = [o for o in outcomes if o.fault == SHAM]
+    faulty = [o for o in outcomes if o.fault != SHAM]
     # each fault once: the smoother's outcome and the robust filters'
-    counted = [o for o in outcomes if o.robust or o.estimator == "smoother"]
-    plain = [o for o in outcomes if not o.robust]
+    counted = [o for o in faulty if o.robust or o.estimator == "smoother"]
+    plain = [o for o in faulty if not o.robust]
     detectable = [o for o in counted if o.reported is not None]
     return {
+        "sham_runs": len(shams),
+        "sham_recovered": sum(o.recovered for o in shams),
         "faults_injected": len(counted),
         "faults_recovered": sum(o.recovered for o in counted),
         "faults_recovered_plain": sum(o.recovered for o in plain),

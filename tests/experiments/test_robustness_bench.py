@@ -9,6 +9,7 @@ import pytest
 
 from experiments.fault_bench import (
     FILTER_FAULTS,
+    SHAM,
     FaultOutcome,
     hand_faults,
     inject,
@@ -52,7 +53,10 @@ def test_inject_smoother_freezes_and_drops(synthetic_push_log):
 
 def test_a_cpf_under_every_fault_stays_finite_and_reports_what_it_can():
     outcomes = hand_faults(1, filters=(FilterSpec("cpf", "cpf"),), progress=False)
-    assert len(outcomes) == 2 * len(FILTER_FAULTS)  # as in the thesis and robust
+    shams = [o for o in outcomes if o.fault == SHAM]
+    assert len(outcomes) == 2 * (len(FILTER_FAULTS) + 1)  # as in the thesis and robust
+    assert len(shams) == 2 and {o.robust for o in shams} == {False, True}
+    assert all(o.reported is None and np.isfinite(o.error_after) for o in shams)
     assert all(isinstance(o, FaultOutcome) and o.finite for o in outcomes)
     reported = {o.fault: o.reported for o in outcomes}
     assert reported["nan-action"] and reported["nan-reading"]
