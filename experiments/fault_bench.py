@@ -212,7 +212,7 @@ def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray
         actions: (T, a). readings: (T, S) bool. error: ``(belief, t) -> float``.
     """
     outcomes = []
-    window = slice(start, min(start + FAULT_STEPS, len(actions)))
+    sham_window = slice(start, min(start + FAULT_STEPS, len(actions)))
     for robust in (False, True):
         cleans = []
         for draw in range(CLEAN_DRAWS):
@@ -220,8 +220,8 @@ def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray
             cleans.append(_filter_run(filt, belief, actions, list(readings), error, rng)[0])
         filt, belief, rng = make(robust, CLEAN_DRAWS)
         errors, flags = _filter_run(filt, belief, actions, list(readings), error, rng)
-        outcomes.append(_outcome(label, SHAM, trial, cleans, errors, window, flags, tol,
-                                 robust))
+        outcomes.append(_outcome(label, SHAM, trial, cleans, errors, sham_window, flags,
+                                 tol, robust))
         for fault in FILTER_FAULTS:
             filt, belief, rng = make(robust, 0)
             a, r, window = inject(actions, readings, fault, start)
