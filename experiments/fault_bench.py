@@ -214,14 +214,14 @@ def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray
     outcomes = []
     sham_window = slice(start, min(start + FAULT_STEPS, len(actions)))
     for robust in (False, True):
-        cleans = []
-        for draw in range(CLEAN_DRAWS):
+        runs = []
+        for draw in range(CLEAN_DRAWS + 1):  # the clean draws, then the sham
             filt, belief, rng = make(robust, draw)
-            cleans.append(_filter_run(filt, belief, actions, list(readings), error, rng)[0])
-        filt, belief, rng = make(robust, CLEAN_DRAWS)
-        errors, flags = _filter_run(filt, belief, actions, list(readings), error, rng)
-        outcomes.append(_outcome(label, SHAM, trial, cleans, errors, sham_window, flags,
-                                 tol, robust))
+            runs.append(_filter_run(filt, belief, actions, list(readings), error, rng))
+        cleans = [errors for errors, _ in runs[:CLEAN_DRAWS]]
+        sham_errors, sham_flags = runs[CLEAN_DRAWS]
+        outcomes.append(_outcome(label, SHAM, trial, cleans, sham_errors, sham_window,
+                                 sham_flags, tol, robust))
         for fault in FILTER_FAULTS:
             filt, belief, rng = make(robust, 0)
             a, r, window = inject(actions, readings, fault, start)
