@@ -27,13 +27,16 @@ Estimators and faults:
 - the hand-relative filters of ch. 4 (CPF, MPF with the AM, RS and TR manifolds) on the
   MPF study's push (:mod:`experiments.mpf_study`), and the configuration filters of ch. 5
   (CPF, MPF-Ball) on the 3-DOF arm (:mod:`experiments.configest_study`), each with
-  ``nan-action`` (the hand's or the arm's commanded motion arrives as NaN: the filter skips
-  the update and reports it), ``nan-reading`` (the contact reading arrives as NaN: the
-  filter propagates without weighting and reports it), ``all-sensors-on`` (every sensor
-  lit at once: with the arm's discriminative sensors a reading no state explains, whose
-  evidence p(o | b+) falls below :data:`SURPRISE`; with the planar world's 10 % flips a
-  plausible one), ``stuck-on`` (one
-  sensor reads contact whatever happens), ``stuck-off`` (every sensor reads free during contact) and
+  ``nan-action`` (the hand's measured palm pose or the arm's commanded configuration
+  arrives as NaN: the filter skips the update and reports it, and the first finite pose
+  after the stretch carries the whole motion since the last one, as
+  :class:`estimation.hand.tracker.HandRelativeTracker` and
+  :class:`diagrams.herb.configuration.ConfigurationEstimator` do), ``nan-reading`` (the
+  contact reading arrives as NaN: the filter propagates without weighting and reports it),
+  ``all-sensors-on`` (every sensor lit at once: with the arm's discriminative sensors a
+  reading no state explains, whose evidence p(o | b+) falls below :data:`SURPRISE`; with
+  the planar world's 10 % flips a plausible one), ``stuck-on`` (one sensor reads contact
+  whatever happens), ``stuck-off`` (every sensor reads free during contact) and
   ``contradicting`` (all on, all off, alternating, for twice as long). The faults start
   two steps after the first true contact; tol is 1 cm (hand) and 0.1 rad (arm).
 - the visuo-tactile smoother (seed 003) on a simulated push of rect1, with ``nan-force``,
@@ -62,6 +65,7 @@ from experiments.mpf_study import FilterSpec, TrialSettings, simulate_truth
 from experiments.mpf_study import build_filter as build_hand_filter
 from models.objects import ObjectSpec
 from models.planar.world import PlanarWorld
+from models.se2 import compose
 
 FILTER_FAULTS = ("nan-action", "nan-reading", "all-sensors-on", "stuck-on", "stuck-off",
                  "contradicting")
@@ -133,12 +137,29 @@ def _recovered(finite: bool, after: float, clean: float, tol: float,
                 and after <= max(RECOVERY_FACTOR * clean, clean + tol, worst))
 
 
-def inject(actions: np.ndarray, readings: np.ndarray, fault: str, start: int
-           ) -> tuple[np.ndarray, list[np.ndarray], slice]:
+def joint_motion(motions: np.ndarray) -> np.ndarray:
+    """The arm's commanded motion over consecutive updates: (k, dof) rad steps summed."""
+    return np.sum(motions, axis=0)
+
+
+def hand_motion(motions: np.ndarray) -> np.ndarray:
+    """The palm's motion over consecutive updates: (k, 3) hand-frame motions (m, m, rad),
+    each in the frame the one before left the palm in, composed in order."""
+    total = np.zeros(3)
+    for motion in motions:
+        total = compose(total, motion)
+    return total
+
+
+def inject(actions: np.ndarray, readings: np.ndarray, fault: str, start: int,
+           carry=joint_motion) -> tuple[np.ndarray, list[np.ndarray], slice]:
     """The inputs with ``fault`` from update ``start`` on.
 
     Args:
         actions: (T, a) commanded motion per update. readings: (T, S) bool.
+        carry: for ``nan-action``, ``(k, a) motions -> (a,)`` their sum as one motion
+            (:func:`joint_motion`, :func:`hand_motion`): the update after the stretch
+            moves the belief by the whole motion since the last finite pose.
 
     Returns:
         actions (T, a) float, readings (T entries, float where NaN was injected, else bool)
@@ -148,6 +169,8 @@ def inject(actions: np.ndarray, readings: np.ndarray, fault: str, start: int
     window = slice(start, min(start + length, len(actions)))
     actions = np.array(actions, dtype=float)
     out = [np.array(r, dtype=bool) for r in readings]
+    if fault == "nan-action" and window.stop < len(actions):
+        actions[window.stop] = carry(actions[window.start:window.stop + 1])
     for t in range(window.start, window.stop):
         if fault == "nan-action":
             actions[t] = np.nan
@@ -201,7 +224,8 @@ def _outcome(estimator, fault, trial, cleans: list[np.ndarray], faulty, window, 
 
 
 def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray,
-                     start: int, error, trial: int, tol: float) -> list[FaultOutcome]:
+                     start: int, error, trial: int, tol: float,
+                     carry=joint_motion) -> list[FaultOutcome]:
     """Every fault of :data:`FILTER_FAULTS` from update ``start``, and the sham, for the
     filter ``make`` builds, as the thesis has it and robust (with the outlier gate), each
     against its own clean runs.
@@ -210,6 +234,7 @@ def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray
         make: ``(robust: bool, draw: int) -> (filter, belief, rng)``, the same seed every
             call with the same draw (draw 0: the faulty runs' random numbers).
         actions: (T, a). readings: (T, S) bool. error: ``(belief, t) -> float``.
+        carry: how motions add up (:func:`inject`).
     """
     outcomes = []
     sham_window = slice(start, min(start + FAULT_STEPS, len(actions)))
@@ -224,7 +249,7 @@ def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray
                                  sham_flags, tol, robust))
         for fault in FILTER_FAULTS:
             filt, belief, rng = make(robust, 0)
-            a, r, window = inject(actions, readings, fault, start)
+            a, r, window = inject(actions, readings, fault, start, carry)
             errors, flags = _filter_run(filt, belief, a, r, error, rng)
             outcomes.append(_outcome(label, fault, trial, cleans, errors, window, flags, tol,
                                      robust))
@@ -263,7 +288,7 @@ def hand_faults(trials: int, *, seed: int = 0, filters: tuple[FilterSpec, ...] =
 
                 outcomes += _filter_outcomes(f"hand/{spec.label}", make, actions,
                                              truth.observations, first + 2, error, trial,
-                                             TOLERANCE["hand"])
+                                             TOLERANCE["hand"], hand_motion)
                 bar.update()
             done += 1
         trial += 1

@@ -12,8 +12,10 @@ from experiments.fault_bench import (
     SHAM,
     FaultOutcome,
     hand_faults,
+    hand_motion,
     inject,
     inject_smoother,
+    joint_motion,
 )
 from experiments.load_bench import (
     BusyCore,
@@ -29,6 +31,7 @@ def test_inject_puts_each_fault_in_its_window():
     readings = np.zeros((30, 4), dtype=bool)
     a, r, window = inject(actions, readings, "nan-action", 5)
     assert window == slice(5, 15) and np.isnan(a[5:15]).all() and np.isfinite(a[15:]).all()
+    assert np.allclose(a[15], 11) and np.allclose(a[16:], 1)  # the gap's motion carried over
     _, r, _ = inject(actions, readings, "nan-reading", 5)
     assert np.isnan(r[5]).all() and r[15].dtype == bool
     _, r, window = inject(actions, readings, "contradicting", 5)
@@ -37,6 +40,13 @@ def test_inject_puts_each_fault_in_its_window():
     assert r[7][0] and not r[7][1:].any() and not r[4].any()
     with pytest.raises(ValueError, match="unknown fault"):
         inject(actions, readings, "gremlins", 5)
+
+
+def test_hand_motion_composes_palm_motions_in_order():
+    quarter_turn_then_forward = np.array([[0.0, 0.0, np.pi / 2], [0.1, 0.0, 0.0]])
+    assert np.allclose(hand_motion(quarter_turn_then_forward), [0.0, 0.1, np.pi / 2])
+    assert np.allclose(hand_motion(quarter_turn_then_forward[::-1]), [0.1, 0.0, np.pi / 2])
+    assert np.allclose(joint_motion(np.ones((4, 7))), 4)
 
 
 def test_inject_smoother_freezes_and_drops(synthetic_push_log):
