@@ -25,6 +25,11 @@ def register(commands) -> None:
                                                 "sensors, offsets, commanded trajectory")
     setting_option(run, "--particles", defaults.particles, "particles per estimator",
                    type=int)
+    setting_option(run, "--dual-particles", defaults.dual_particles,
+                   "MPF-Ball's dual particles n_d per contact update (of --particles)",
+                   type=int)
+    setting_option(run, "--mixing-rate", defaults.mixing_rate,
+                   "MPF-Ball's mixing rate phi in [0, 1] (Alg. 4.2)", type=float)
     setting_option(run, "--tactile-error-rate", "the arm file's sensor_error_rate",
                    "the tactile system's error rate during contact", type=float)
     mpf_variant_options(run, defaults)
@@ -83,8 +88,8 @@ def _run(args: argparse.Namespace) -> int:
     from models.arms.spec import ArmSpec
 
     check_outlier_gate(args)
-    same = ("arm", "particles", "seed", "tactile_error_rate", "constraints", "dual_share",
-            "metric", "proprioception")
+    same = ("arm", "particles", "dual_particles", "mixing_rate", "seed", "tactile_error_rate",
+            "constraints", "dual_share", "metric", "proprioception")
     settings = overridden(ConfigestEpisodeSettings(), args, {
         **{key: key for key in same}, "outlier_gate": "outlier_log_evidence"})
     if settings.tactile_error_rate is not None and not 0 <= settings.tactile_error_rate <= 1:
@@ -94,9 +99,11 @@ def _run(args: argparse.Namespace) -> int:
     if spec.kind != "herb":
         raise ValueError(f"{spec.source}: the HERB episode needs a 'herb' arm, got "
                          f"{spec.kind!r}")
-    if not settings.dual_particles < settings.particles:
-        raise ValueError(f"--particles must exceed the MPF's {settings.dual_particles} "
-                         f"dual particles, got {settings.particles}")
+    if not 1 <= settings.dual_particles < settings.particles:
+        raise ValueError(f"--dual-particles must be in [1, --particles), got "
+                         f"{settings.dual_particles} with {settings.particles} particles")
+    if not 0 <= settings.mixing_rate <= 1:
+        raise ValueError(f"--mixing-rate must be in [0, 1], got {settings.mixing_rate}")
     meshcat = local_meshcat()
     if args.meshcat:
         print(f"Meshcat is live at {meshcat.web_url()}", flush=True)

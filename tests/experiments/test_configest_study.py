@@ -56,7 +56,11 @@ def test_configest_run_refuses_bad_input_before_building(tmp_path, capsys):
                  str(tmp_path)]) == 2
     assert "--tactile-error-rate must be in [0, 1]" in capsys.readouterr().err
     assert main(["configest", "run", "--particles", "5", "--out", str(tmp_path)]) == 2
-    assert "--particles must exceed" in capsys.readouterr().err
+    assert "--dual-particles must be in [1, --particles)" in capsys.readouterr().err
+    assert main(["configest", "run", "--dual-particles", "0", "--out", str(tmp_path)]) == 2
+    assert "got 0 with 100 particles" in capsys.readouterr().err
+    assert main(["configest", "run", "--mixing-rate", "1.5", "--out", str(tmp_path)]) == 2
+    assert "--mixing-rate must be in [0, 1]" in capsys.readouterr().err
     assert main(["configest", "run", "--outlier-gate", "3", "--out", str(tmp_path)]) == 2
     assert "--outlier-gate must be < 0" in capsys.readouterr().err
     with pytest.raises(SystemExit) as usage:
