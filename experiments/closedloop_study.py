@@ -24,10 +24,15 @@ import numpy as np
 
 from diagrams.herb.closed_loop import estimator_filter
 from diagrams.herb.episode import run_episode
-from diagrams.herb.settings import POLICIES, THESIS_BELIEF_MEANS, EpisodeSettings
+from diagrams.herb.settings import (
+    EPISODE_CEILINGS,
+    POLICIES,
+    THESIS_BELIEF_MEANS,
+    EpisodeSettings,
+)
 from experiments.runner import Backend, Job, TrialStore, map_trials
 from experiments.statistics import wilson_interval
-from models.settings import settings_to_dict
+from models.settings import check_ranges, settings_to_dict
 from planning.hand.solution import HandSolution, HandSolveSettings, solve_hand_problem
 
 THESIS_REAL_ROBOT = {"pomdp": {"successes": 27, "trials": 30},
@@ -58,6 +63,7 @@ class ClosedLoopSettings:
         unknown = set(self.policies) - set(POLICIES)
         if unknown:
             raise ValueError(f"policies must be drawn from {POLICIES}, got {self.policies}")
+        check_ranges(self, at_most={"beliefs": EPISODE_CEILINGS["belief_mean"]})
 
     @property
     def runs(self) -> tuple[str, ...]:

@@ -43,6 +43,7 @@ from experiments.runner import Backend, Job, TrialStore, map_trials
 from experiments.statistics import half_width
 from models.arms.spec import ArmSpec
 from models.arms.world import ArmWorld
+from models.settings import check_ranges
 
 ARMS = ("2dof", "3dof", "wam")
 FILTERS = ("cpf", "mpf-uniform", "mpf-particle", "mpf-ball", "mpf-explicit")
@@ -99,10 +100,9 @@ class ConfigestSettings:
                              f"{self.method!r}")
         if not 0.0 <= self.mixing_rate <= 1.0:
             raise ValueError(f"mixing_rate must be in [0, 1], got {self.mixing_rate}")
-        if self.process_noise_radius_rad < 0:
-            raise ValueError("process_noise_radius_rad must be >= 0")
-        if self.ball_radius_rad is not None and not self.ball_radius_rad > 0:
-            raise ValueError(f"ball_radius_rad must be > 0, got {self.ball_radius_rad}")
+        check_ranges(self, positive=("ball_radius_rad",),
+                     non_negative=("process_noise_radius_rad",),
+                     at_most={"ball_radius_rad": np.pi, "process_noise_radius_rad": np.pi})
         if self.constraints not in CONSTRAINTS:
             raise ValueError(f"constraints must be one of {', '.join(CONSTRAINTS)}, got "
                              f"{self.constraints!r}")

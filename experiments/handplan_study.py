@@ -43,6 +43,7 @@ from experiments.runner import Backend, Job, TrialStore, map_trials
 from experiments.statistics import half_width, wilson_interval
 from experiments.timing import median_ms
 from models.planar.world import PlanarWorld
+from models.settings import check_ranges
 from planning.hand.beliefs import (
     POST_CONTACT_DISTANCE_M,
     PRE_CONTACT_DISTANCE_M,
@@ -98,6 +99,8 @@ class HandplanSettings:
             raise ValueError("trials, horizon and belief_count must be >= 1")
         if self.solve_seconds <= 0:
             raise ValueError("solve_seconds must be > 0")
+        check_ranges(self, counts=("belief_particles", "precontact_particles", "solve_trials"),
+                     at_most={"solve_seconds": 86400.0})
 
 
 @dataclass

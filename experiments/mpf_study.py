@@ -33,6 +33,7 @@ from experiments.mpf_plots import plot_part, plot_world
 from experiments.runner import Backend, Job, TrialStore, map_trials
 from experiments.statistics import half_width
 from models.planar.world import PlanarWorld
+from models.settings import check_ranges
 
 PARTS = ("compare", "resolution", "rate", "representations", "mixing")
 RESOLUTIONS = ("low", "medium", "high")
@@ -81,6 +82,11 @@ class TrialSettings:
             raise ValueError("std must be > 0, particles and dual_particles >= 1")
         if not 0.0 <= self.mixing_rate <= 1.0:
             raise ValueError(f"mixing_rate must be in [0, 1], got {self.mixing_rate}")
+        check_ranges(self, positive=("am_dtheta_deg", "rs_epsilon_m"),
+                     non_negative=("lateral_range_m",),
+                     counts=("rs_size", "tr_rollouts", "tr_per_rollout"),
+                     at_most={"mean_ahead_m": 1.0, "lateral_range_m": 1.0, "std": 10.0,
+                              "am_dtheta_deg": 360.0, "rs_epsilon_m": 0.1})
 
     @property
     def updates(self) -> int:

@@ -46,6 +46,7 @@ from models.objects import ObjectSpec
 from models.pusher.log import PushLog
 from models.pusher.procedure import standard_procedure
 from models.pusher.rig import PusherSliderRig
+from models.settings import check_ranges
 
 PARTS = ("noise", "methods", "shapes", "surfaces", "costs", "timing")
 SHAPES = ("rect1", "ellip2", "butter")
@@ -73,6 +74,9 @@ class VisuotactileSettings:
     noise_trials: int = 3
     rig: str | None = None
     history: int = 200
+
+    def __post_init__(self):
+        check_ranges(self, counts=("trials", "noise_trials", "history"))
 
     def load_rig(self) -> PusherSliderRig:
         return PusherSliderRig.load(self.rig) if self.rig else PusherSliderRig.load()

@@ -193,6 +193,9 @@ def _parse_vertices(fields: Fields, raw: object) -> np.ndarray:
         raise fields.error("vertices_m", "expected at least three [x, y] pairs")
     if not np.all(np.isfinite(vertices)):
         raise fields.error("vertices_m", "vertices must be finite numbers")
+    if np.abs(vertices).max() > 3.0:
+        raise fields.error("vertices_m", "vertices must lie within 3 m of the origin, as a "
+                                         "box's size_m is at most 3 m")
     edges = np.roll(vertices, -1, axis=0) - vertices
     turn = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1,
                                                                                    axis=0)[:, 0]

@@ -14,9 +14,11 @@ from __future__ import annotations
 import dataclasses
 import types
 import typing
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
 import yaml
 
 from models.config import ConfigError, Fields
@@ -108,6 +110,33 @@ def settings_from_fields(cls: type[T], fields: Fields, *, base: T | None = None)
         return cls(**values)
     except (ValueError, TypeError) as err:
         raise ConfigError(fields.source, fields.prefix, str(err)) from err
+
+
+def check_ranges(settings: Any, *, positive: tuple[str, ...] = (),
+                 non_negative: tuple[str, ...] = (), counts: tuple[str, ...] = (),
+                 at_most: Mapping[str, float] | None = None) -> None:
+    """Reject fields of the settings dataclass ``settings`` out of their range: each named
+    field's value, or every element of a tuple value (a ``None`` is skipped: an optional
+    setting left unset), must be > 0 (``positive``: sizes, speeds, time steps), >= 0
+    (``non_negative``: noise levels, weights), an integer >= 1 (``counts``: trials,
+    particles, samples), and at most ``at_most[name]`` in magnitude (the physical or
+    practical ceiling, in the field's own unit, that catches a 1e12 m/s hand speed which
+    would otherwise load and then run absurdly). NaN fails every test.
+
+    Raises:
+        ValueError: naming the first offending field and its value (which
+            :func:`settings_from_fields` reports against the file).
+    """
+    rules = [(positive, "> 0", lambda v: v > 0), (non_negative, ">= 0", lambda v: v >= 0),
+             (counts, "an integer >= 1", lambda v: float(v).is_integer() and v >= 1)]
+    rules += [((name,), f"at most {bound:g} in magnitude", lambda v, b=bound: abs(v) <= b)
+              for name, bound in (at_most or {}).items()]
+    for names, wanted, holds in rules:
+        for name in names:
+            value = getattr(settings, name)
+            values = np.ravel(value) if isinstance(value, tuple) else (value,)
+            if not all(v is None or holds(v) for v in values):
+                raise ValueError(f"{name} must be {wanted}, got {value!r}")
 
 
 def load_settings(cls: type[T], path: Path | str) -> T:

@@ -8,6 +8,7 @@ import numpy as np
 
 from models.contact import SimulationConfig
 from models.herb.tactile import TactileNoise
+from models.settings import check_ranges
 from planning.hand.precontact import PreContactSettings
 from planning.lattice.planners import check_budget
 from planning.lattice.pomdp import OUTSIDE_MODES
@@ -22,6 +23,13 @@ LAT_DESPOT_MODELS = ("discrete", "continuous")
 THESIS_BELIEF_MEANS = ((0.35, -0.12, 0.0), (0.35, 0.0, 0.0), (0.35, 0.06, 0.0))
 TOPPLED_RAD = float(np.deg2rad(45.0))
 """An object tilted further than this has fallen over; the episode ends."""
+
+
+# Ceilings on the episode's magnitudes (each in its field's unit): far beyond any sensible
+# run (HERB reaches about 1 m; the WAM's palm moves well under 1 m/s) and low enough that a
+# mistyped exponent is refused rather than simulated.
+EPISODE_CEILINGS = {"belief_mean": 10.0, "belief_std": 10.0, "hand_speed_m_per_s": 2.0,
+                    "travel_m": 0.5, "time_step_s": 0.1, "lat_despot_seconds": 3600.0}
 
 
 @dataclass(frozen=True)
@@ -135,6 +143,9 @@ class EpisodeSettings:
         if self.planner_belief not in PLANNER_BELIEFS:
             raise ValueError(f"planner_belief must be one of {PLANNER_BELIEFS}, got "
                              f"{self.planner_belief!r}")
+        check_ranges(self, positive=("belief_std", "hand_speed_m_per_s", "travel_m",
+                                     "time_step_s"), non_negative=("posture_weight",),
+                     at_most=EPISODE_CEILINGS)
         if self.particles < 10 or self.horizon < 1:
             raise ValueError("particles must be >= 10 and horizon >= 1")
         if self.on_infeasible not in ("next", "stop"):

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from models.config import Fields, resolve_asset
+from models.settings import check_ranges
 
 FINGERS = ("f1", "f2", "f3")
 
@@ -144,8 +145,9 @@ class TactileNoise:
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
                 raise ValueError(f"TactileNoise.{name}={value} is outside [0, 1]")
-        if self.force_threshold_n < 0 or self.force_noise_std_n < 0:
-            raise ValueError("TactileNoise force threshold and noise must be >= 0 N")
+        # 1 kN: ten times what the hand's motors can press with.
+        check_ranges(self, non_negative=("force_threshold_n", "force_noise_std_n"),
+                     at_most={"force_threshold_n": 1000.0, "force_noise_std_n": 1000.0})
 
     @staticmethod
     def noiseless(force_threshold_n: float = 0.5) -> TactileNoise:

@@ -164,12 +164,12 @@ class PusherSliderRig:
             bias_deg=cam.number("bias_deg", min=-45, max=45),
             noise_m=cam.number("noise_m", min=0.0, max=0.5),
             noise_deg=cam.number("noise_deg", min=0.0, max=45),
-            tag_size_m=cam.number("tag_size_m", min=0.0, max=0.5))
+            tag_size_m=cam.number("tag_size_m", min=1e-3, max=0.5))
         cam.done()
         rig = PusherSliderRig(
             pusher_diameter_m=fields.number("pusher_diameter_m", min=1e-4, max=0.1),
             pusher_length_m=fields.number("pusher_length_m", min=0.02, max=1.0),
-            pusher_spacing_m=fields.number("pusher_spacing_m", min=0.0, max=0.5),
+            pusher_spacing_m=fields.number("pusher_spacing_m", min=1e-3, max=0.5),
             pusher_clearance_m=fields.number("pusher_clearance_m", min=0.0, max=0.01),
             pusher_object_mu=fields.number("pusher_object_mu", min=0.0, max=2.0),
             push_speed_m_per_s=fields.number("push_speed_m_per_s", min=1e-3, max=1.0),
@@ -178,8 +178,8 @@ class PusherSliderRig:
             surfaces=surfaces,
             force_sensor=force,
             camera=camera,
-            carriage_size_m=fields.vector("carriage_size_m", 3, min=0.0, max=1.0),
-            wrist_size_m=fields.vector("wrist_size_m", 3, min=0.0, max=2.0),
+            carriage_size_m=fields.vector("carriage_size_m", 3, min=1e-3, max=1.0),
+            wrist_size_m=fields.vector("wrist_size_m", 3, min=1e-3, max=2.0),
             source=str(path))
         fields.done()
         return rig

@@ -31,6 +31,7 @@ import shapely
 from models.config import ConfigError, Fields, resolve_asset
 from models.planar.cspace import c_obstacle
 from models.planar.world import PlanarWorld
+from models.settings import check_ranges
 
 ACTION_NAMES = ("forward", "left", "right", "forward_left", "forward_right")
 ACTION_DIRECTIONS = np.array([[1, 0], [0, 1], [0, -1], [1, 1], [1, -1]], dtype=float)
@@ -87,6 +88,11 @@ class HandProblemSpec:
             raise ValueError("free_cell_m and contact_cell_m must be in (0, 0.1] m")
         if not 0 < self.cell_theta_rad <= np.pi:
             raise ValueError("cell_theta_rad must be in (0, pi]")
+        # Ceilings (m, and steps of step_m): HERB's reach, so that a mistyped exponent is
+        # refused rather than discretised into 1e14 cells.
+        check_ranges(self, positive=("goal_depth_m", "goal_width_m"),
+                     at_most={"trust_x_m": 2.0, "trust_y_m": 2.0, "goal_depth_m": 1.0,
+                              "goal_width_m": 1.0, "step_m": 0.5, "action_directions": 10.0})
         if not 0 <= self.discount < 1 or self.samples_per_state < 1 or self.step_m <= 0:
             raise ValueError("discount must be in [0, 1), samples_per_state >= 1, step_m > 0")
         if not self.action_names or len(self.action_names) != len(self.action_directions):

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from models.planar.observation import observation_keys
+from models.settings import check_ranges
 from planning.hand.model import HandPOMDP, goal_region
 from planning.pomdp.point_based import AlphaVectorPolicy
 
@@ -67,6 +68,10 @@ class PreContactSettings:
     def __post_init__(self):
         if self.inflation < 1 or self.horizon < 1 or self.time_limit_s <= 0:
             raise ValueError("inflation must be >= 1, horizon >= 1 and time_limit_s > 0")
+        check_ranges(self, at_most={"time_limit_s": 3600.0})
+        if not 0 <= self.contact_stop <= 1:
+            raise ValueError(f"contact_stop must be a probability in [0, 1], got "
+                             f"{self.contact_stop}")
         if self.trust_mass_stop is not None and not 0 < self.trust_mass_stop <= 1:
             raise ValueError(f"trust_mass_stop must be in (0, 1] or None, got "
                              f"{self.trust_mass_stop}")

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from models.planar.world import PlanarWorld
+from models.settings import check_ranges
 from planning.hand.beliefs import POST_CONTACT_DISTANCE_M, belief_points
 from planning.hand.discretization import HandDiscretization, HandProblemSpec
 from planning.hand.model import HandPOMDP, build_hand_pomdp
@@ -59,6 +60,7 @@ class HandSolveSettings:
     def __post_init__(self):
         if self.solve_seconds <= 0 or self.belief_count < 1 or self.belief_particles < 1:
             raise ValueError("solve_seconds must be > 0, belief_count and belief_particles >= 1")
+        check_ranges(self, counts=("solve_trials",), at_most={"solve_seconds": 86400.0})
 
     def key(self) -> str:
         """A short hash of every setting (and the cache format)."""

@@ -62,6 +62,13 @@ def test_options_override_the_file_and_defaults_are_the_settings_own(tmp_path):
     ("solver:\n  solve_seconds: -1\n", "solver"),
     ("episode:\n  belief_mean: [0.3, 0.0]\n", "episode.belief_mean"),
     ("episode:\n  estimator_outlier_log_evidence: 2.0\n", "episode"),
+    ("episode:\n  time_step_s: 0\n", "time_step_s"),
+    ("episode:\n  hand_speed_m_per_s: -0.1\n", "hand_speed_m_per_s"),
+    ("episode:\n  belief_std: [0.05, .nan, 0.1]\n", "belief_std"),
+    ("episode:\n  precontact:\n    contact_stop: 1.5\n", "contact_stop"),
+    ("solver:\n  solve_trials: 0\n", "solve_trials"),
+    ("episode:\n  hand_speed_m_per_s: 1.0e+12\n", "hand_speed_m_per_s"),
+    ("solver:\n  spec:\n    trust_x_m: [0.0, 1.0e+12]\n", "trust_x_m"),
 ])
 def test_a_bad_config_names_the_file_and_field(tmp_path, capsys, text, field):
     path = tmp_path / "bad.yaml"
