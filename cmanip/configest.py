@@ -30,6 +30,9 @@ def register(commands) -> None:
                    type=int)
     setting_option(run, "--mixing-rate", defaults.mixing_rate,
                    "MPF-Ball's mixing rate phi in [0, 1] (Alg. 4.2)", type=float)
+    setting_option(run, "--process-noise", defaults.process_noise_radius_rad,
+                   "both estimators' motion noise per update: the radius (rad) of a uniform "
+                   "ball added to each commanded step", type=float)
     setting_option(run, "--tactile-error-rate", "the arm file's sensor_error_rate",
                    "the tactile system's error rate during contact", type=float)
     mpf_variant_options(run, defaults)
@@ -91,7 +94,11 @@ def _run(args: argparse.Namespace) -> int:
     same = ("arm", "particles", "dual_particles", "mixing_rate", "seed", "tactile_error_rate",
             "constraints", "dual_share", "metric", "proprioception")
     settings = overridden(ConfigestEpisodeSettings(), args, {
-        **{key: key for key in same}, "outlier_gate": "outlier_log_evidence"})
+        **{key: key for key in same}, "outlier_gate": "outlier_log_evidence",
+        "process_noise": "process_noise_radius_rad"})
+    if not 0 <= settings.process_noise_radius_rad <= 0.5:
+        raise ValueError(f"--process-noise must be in [0, 0.5] rad, got "
+                         f"{settings.process_noise_radius_rad}")
     if settings.tactile_error_rate is not None and not 0 <= settings.tactile_error_rate <= 1:
         raise ValueError(f"--tactile-error-rate must be in [0, 1], got "
                          f"{settings.tactile_error_rate}")

@@ -61,6 +61,8 @@ def test_configest_run_refuses_bad_input_before_building(tmp_path, capsys):
     assert "got 0 with 100 particles" in capsys.readouterr().err
     assert main(["configest", "run", "--mixing-rate", "1.5", "--out", str(tmp_path)]) == 2
     assert "--mixing-rate must be in [0, 1]" in capsys.readouterr().err
+    assert main(["configest", "run", "--process-noise", "-0.01", "--out", str(tmp_path)]) == 2
+    assert "--process-noise must be in [0, 0.5] rad" in capsys.readouterr().err
     assert main(["configest", "run", "--outlier-gate", "3", "--out", str(tmp_path)]) == 2
     assert "--outlier-gate must be < 0" in capsys.readouterr().err
     with pytest.raises(SystemExit) as usage:
