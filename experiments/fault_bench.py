@@ -40,7 +40,8 @@ Estimators and faults:
   ``contradicting`` (all on, all off, alternating, for twice as long). The faults start
   two steps after the first true contact; tol is 1 cm (hand) and 0.1 rad (arm).
 - the visuo-tactile smoother (seed 003) on a simulated push of rect1, with ``nan-force``,
-  ``nan-camera`` (both left out and counted in ``rejected_inputs``), ``teleported-camera``
+  ``nan-camera`` (both left out and counted in ``rejected_inputs``), ``blind`` (both at
+  once: the rods' penetration costs alone keep the object moving), ``teleported-camera``
   (camera poses 30 cm and 1 rad off: no pose explains them; the vision cost's Huber kernel
   bounds their pull), ``dropped-frames`` (no camera frame for the stretch: the tactile
   costs carry the estimate) and ``stuck-contact`` (both force sensors freeze, reading
@@ -69,8 +70,8 @@ from models.se2 import compose
 
 FILTER_FAULTS = ("nan-action", "nan-reading", "all-sensors-on", "stuck-on", "stuck-off",
                  "contradicting")
-SMOOTHER_FAULTS = ("nan-force", "nan-camera", "teleported-camera", "dropped-frames",
-                   "stuck-contact")
+SMOOTHER_FAULTS = ("nan-force", "nan-camera", "blind", "teleported-camera",
+                   "dropped-frames", "stuck-contact")
 SHAM = "none"
 """The control: no fault, a fresh draw judged like the faulty runs."""
 FAULT_STEPS = 10
@@ -331,23 +332,23 @@ def arm_faults(trials: int, *, seed: int = 0, progress: bool = True) -> list[Fau
 
 def inject_smoother(steps: PushingSteps, fault: str, start: int) -> tuple[PushingSteps, slice]:
     """``steps`` with ``fault`` for :data:`SMOOTHER_FAULT_S` from step ``start``."""
+    if fault not in SMOOTHER_FAULTS:
+        raise ValueError(f"unknown fault {fault!r}; choose from {SMOOTHER_FAULTS}")
     dt = float(np.median(np.diff(steps.t)))
     window = slice(start, min(start + int(round(SMOOTHER_FAULT_S / dt)), len(steps)))
     forces, vision = steps.forces.copy(), steps.vision.copy()
     vision_ok, contact = steps.vision_ok.copy(), steps.contact.copy()
-    if fault == "nan-force":
+    if fault in ("nan-force", "blind"):
         forces[window] = np.nan
-    elif fault == "nan-camera":
+    if fault in ("nan-camera", "blind"):
         vision[window] = np.nan
-    elif fault == "teleported-camera":
+    if fault == "teleported-camera":
         vision[window] += np.array([0.3, 0.3, 1.0])
-    elif fault == "dropped-frames":
+    if fault == "dropped-frames":
         vision_ok[window] = False
-    elif fault == "stuck-contact":  # the force sensors freeze on their last reading
+    if fault == "stuck-contact":  # the force sensors freeze on their last reading
         contact[window] = True
         forces[window] = forces[window.start - 1]
-    else:
-        raise ValueError(f"unknown fault {fault!r}; choose from {SMOOTHER_FAULTS}")
     return replace(steps, forces=forces, vision=vision, vision_ok=vision_ok,
                    contact=contact), window
 
@@ -378,7 +379,7 @@ def smoother_faults(steps: PushingSteps, polygon: np.ndarray, *, progress: bool 
         errors = errors[begun]
         shift = int(np.argmax(begun))
         window = slice(window.start - shift, window.stop - shift)
-        reported = rejected > 0 if fault.startswith("nan-") else None
+        reported = rejected > 0 if fault.startswith("nan-") or fault == "blind" else None
         # a NaN left in an estimate would make errors NaN: finite is checked on them
         outcome = _outcome("smoother", fault, 0, [clean], errors, window, [], TOLERANCE[
             "smoother"])  # the smoother draws nothing: one clean run is every draw

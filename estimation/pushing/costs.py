@@ -17,6 +17,10 @@ order), so they plug into ``gtsam.CustomFactor`` unchanged.
   centre's signed distance to the outline minus the rod radius, and the sensed contact
   point ``B = rod + r f / |f|`` (the rod centre moved along the force it applies to the
   object) minus its closest point ``A`` on the outline, both in the object frame.
+- **Penetration** (not in seed 003): for a rod whose position is known but whose force
+  reading is not (a dropped force sample), ``max(0, r - sd(q_rod))``: the rod may or may
+  not touch, but it cannot be inside the object, so while blind the object is pushed
+  along by the rods rather than left behind.
 - **Vision** (eq. 4): ``x_t - w_t`` in the world frame, angle wrapped.
 - **Stationary prior** (eq. 4): ``x_t - x_{t-1}``, angle wrapped.
 """
@@ -84,6 +88,31 @@ def contact_residual(pose: np.ndarray, rod: np.ndarray, force: np.ndarray, radiu
     return kernels.contact(np.asarray(pose, dtype=float), np.asarray(rod, dtype=float),
                            np.asarray(force, dtype=float), float(radius), polygon.vertices,
                            polygon.edges, polygon.length2)
+
+
+def penetration_residual(pose: np.ndarray, rod: np.ndarray, radius: float,
+                         polygon: Outline | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How deep a rod of unknown force sits inside the object (see the module docstring).
+
+    Args:
+        pose: (3,) object pose. rod: (2,) rod centre (m, world). radius: rod radius (m).
+        polygon: the outline (an :class:`Outline` or its (V, 2) vertices).
+
+    Returns:
+        (residual (1,) m: ``max(0, r - sd(q_rod))``, Jacobian (1, 3) with respect to the
+        local perturbation: ``-grad sd(q_rod) dq_rod/dxi`` while the rod penetrates, else
+        zero).
+    """
+    x, y, theta = pose
+    c, s = math.cos(theta), math.sin(theta)
+    dx, dy = rod[0] - x, rod[1] - y
+    q = np.array([c * dx + s * dy, -s * dx + c * dy])
+    _, _, sd, grad = closest_boundary_point(polygon, q)
+    depth = radius - sd
+    if depth <= 0.0:
+        return np.zeros(1), np.zeros((1, 3))
+    dq = np.array([[-1.0, 0.0, q[1]], [0.0, -1.0, -q[0]]])
+    return np.array([depth]), -(grad @ dq)[None]
 
 
 def contact_points(rods: np.ndarray, forces: np.ndarray, radius: float) -> np.ndarray:

@@ -7,6 +7,9 @@ One ``Pose2`` per estimator step (100 Hz). Each step adds (sec. IV-A, Fig. 3):
 - the pushing motion cost between them, from the forces at the previous step (when a rod
   touched then);
 - one contact cost per rod in contact now;
+- beyond the paper, one penetration cost per rod whose position is known but whose force
+  reading was lost (:func:`estimation.pushing.costs.penetration_residual`): while the
+  force sensors are blind the rods still push the object out of their way;
 - the vision cost, Huber-robust, when a camera pose arrived.
 
 The motion and contact costs are :mod:`estimation.pushing.costs` wrapped as
@@ -57,6 +60,7 @@ from estimation.pushing.costs import (
     contact_points,
     contact_residual,
     motion_residual,
+    penetration_residual,
     stationary_residual,
     vision_residual,
 )
@@ -162,6 +166,9 @@ class VisuoTactileSmoother:
         self._models = {
             "motion": gtsam.noiseModel.Gaussian.Covariance(noise.motion),
             "contact": gtsam.noiseModel.Gaussian.Covariance(noise.contact),
+            # the contact cost's signed-distance row
+            "penetration": gtsam.noiseModel.Isotropic.Sigma(1, float(np.sqrt(
+                noise.contact[0, 0]))),
             "vision": gtsam.noiseModel.Robust.Create(
                 self._huber, gtsam.noiseModel.Gaussian.Covariance(noise.vision)),
         }
@@ -223,8 +230,8 @@ class VisuoTactileSmoother:
         """
         if not self.started:
             raise RuntimeError("call start() first")
-        rods, forces, contact, vision, unknown = self._usable(rods, forces, contact,
-                                                              vision)
+        rods, forces, contact, vision, blind = self._usable(rods, forces, contact, vision)
+        unknown = blind is not None
         begin = time.perf_counter()
         costs = self.settings.costs
         self._k += 1
@@ -242,6 +249,8 @@ class VisuoTactileSmoother:
         if "contact" in costs:
             for rod in np.flatnonzero(contact):
                 own.append(self._contact(k, rods[rod], forces[rod]))
+            for rod in () if blind is None else blind:
+                own.append(self._penetration(k, rod))
         if "vision" in costs and vision is not None:
             own.append(self._vision(k, vision))
         self._previous_inputs = (np.array(rods), np.array(forces), np.array(contact, bool))
@@ -275,12 +284,14 @@ class VisuoTactileSmoother:
         that reads contact with no force (the contact cost needs the force's direction),
         has its contact and motion costs dropped, and the step's stationary prior is the
         pushed one (the rod may be pushing: taking it as free would hold the object still
-        against the camera); a camera pose with a NaN or infinity is taken as no camera
-        frame. A factor with a NaN measurement would make the whole window's solution NaN.
+        against the camera); where its centre is finite it keeps a penetration cost. A
+        camera pose with a NaN or infinity is taken as no camera frame. A factor with a
+        NaN measurement would make the whole window's solution NaN.
 
         Returns:
-            rods, forces, contact, vision as :meth:`step` takes them, and whether a rod's
-            reading was left out.
+            rods, forces, contact, vision as :meth:`step` takes them, and the (B, 2)
+            centres of the rods left out whose centre is finite (None when none was left
+            out).
         """
         rods = np.asarray(rods, dtype=float)
         forces = np.asarray(forces, dtype=float)
@@ -288,7 +299,9 @@ class VisuoTactileSmoother:
         finite = np.isfinite(rods).all(axis=1) & np.isfinite(forces).all(axis=1)
         # a NaN force compares False, so only the finite ones can read as forceless
         bad = ~finite | (contact & (np.abs(forces).sum(axis=1) < MIN_CONTACT_FORCE_N))
+        blind = None
         if bad.any():
+            blind = rods[bad & np.isfinite(rods).all(axis=1)]
             self.rejected_inputs += int(bad.sum())
             contact &= ~bad
             rods = np.where(bad[:, None], 0.0, rods)
@@ -296,7 +309,7 @@ class VisuoTactileSmoother:
         if vision is not None and not np.all(np.isfinite(vision)):
             self.rejected_inputs += 1
             vision = None
-        return rods, forces, contact, vision, bool(bad.any())
+        return rods, forces, contact, vision, blind
 
     def run(self, steps: PushingSteps, *, start: np.ndarray | None = None) -> np.ndarray:
         """Estimate every step of ``steps``; (K, 3), nan before the first camera pose (or
@@ -411,6 +424,17 @@ class VisuoTactileSmoother:
                 H[0] = J
             return r
         return gtsam.CustomFactor(self._models["contact"], [X(k)], error)
+
+    def _penetration(self, k: int, rod: np.ndarray) -> gtsam.CustomFactor:
+        polygon, radius = self.outline, self.radius
+        rod = np.array(rod)
+
+        def error(this, values, H):
+            r, J = penetration_residual(_pose(values, this.keys()[0]), rod, radius, polygon)
+            if H is not None:
+                H[0] = J
+            return r
+        return gtsam.CustomFactor(self._models["penetration"], [X(k)], error)
 
     def _vision(self, k: int, measured: np.ndarray):
         measured = np.array(measured)

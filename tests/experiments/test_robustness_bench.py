@@ -59,6 +59,11 @@ def test_inject_smoother_freezes_and_drops(synthetic_push_log):
     stuck, _ = inject_smoother(steps, "stuck-contact", 100)
     assert stuck.contact[window].all()
     np.testing.assert_array_equal(stuck.forces[120], steps.forces[99])
+    blind, _ = inject_smoother(steps, "blind", 100)
+    assert np.isnan(blind.forces[window]).all() and np.isnan(blind.vision[window]).all()
+    assert np.isfinite(blind.rods[window]).all()  # the arm still knows where the rods are
+    with pytest.raises(ValueError, match="unknown fault"):
+        inject_smoother(steps, "gremlins", 100)
 
 
 def test_a_cpf_under_every_fault_stays_finite_and_reports_what_it_can():

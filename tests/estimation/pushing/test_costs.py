@@ -11,6 +11,7 @@ from estimation.pushing.costs import (
     contact_residual,
     limit_surface_c,
     motion_residual,
+    penetration_residual,
     stationary_residual,
     vision_residual,
 )
@@ -56,6 +57,21 @@ def test_contact_residual_is_zero_for_a_touching_rod_pushing_along_the_normal():
     force = R @ np.array([2.0, 0.0])
     r, _ = contact_residual(pose, rod, force, radius, SQUARE)
     np.testing.assert_allclose(r, 0.0, atol=1e-12)
+
+
+def test_penetration_is_the_depth_of_a_rod_inside_and_zero_outside():
+    pose = np.array([0.1, 0.2, 0.3])
+    c, s = np.cos(0.3), np.sin(0.3)
+    R = np.array([[c, -s], [s, c]])
+    radius = 0.003
+    inside = pose[:2] + R @ np.array([-0.045 - radius + 0.002, 0.01])  # 2 mm in
+    r, J = penetration_residual(pose, inside, radius, SQUARE)
+    assert r[0] == pytest.approx(0.002)
+    Jn = numerical(lambda x: penetration_residual(x, inside, radius, SQUARE)[0], pose)
+    np.testing.assert_allclose(J, Jn, atol=1e-6)
+    outside = pose[:2] + R @ np.array([-0.045 - radius - 0.001, 0.01])
+    r, J = penetration_residual(pose, outside, radius, SQUARE)
+    assert r[0] == 0.0 and not J.any()
 
 
 @pytest.mark.parametrize("seed", range(5))

@@ -173,10 +173,11 @@ def test_dropping_poses_keeps_what_they_knew(steps, noise):
 
 
 def test_unusable_readings_are_left_out_counted_and_survived(steps, noise):
-    """NaN forces or an infinite camera pose for 0.4 s of pushing are left out and counted,
-    and the estimate ends where the clean run's does; both at once leave it finite (it
-    drifts while blind and, in this push, does not come back: see the fault bench); a rod
-    reading contact with no force does not crash the contact cost."""
+    """NaN forces, an infinite camera pose, or both, for 0.4 s of pushing are left out and
+    counted, and the estimate ends where the clean run's does (blind to both, the rods'
+    penetration costs push the object along: without them it stayed behind by 2 cm, then
+    turned 0.8 rad to fit the rods and never came back); a rod reading contact with no
+    force does not crash the contact cost."""
     from dataclasses import replace
 
     touching = np.flatnonzero(steps.contact.any(axis=1) & steps.vision_ok)
@@ -186,14 +187,12 @@ def test_unusable_readings_are_left_out_counted_and_survived(steps, noise):
     forces, vision = steps.forces.copy(), steps.vision.copy()
     forces[window] = np.nan
     vision[window] = np.inf
-    for bad, recovers in ((replace(steps, forces=forces), True),
-                          (replace(steps, vision=vision), True),
-                          (replace(steps, forces=forces, vision=vision), False)):
+    for bad in (replace(steps, forces=forces), replace(steps, vision=vision),
+                replace(steps, forces=forces, vision=vision)):
         smoother = VisuoTactileSmoother(RECT1, noise, rod_radius_m=steps.rod_radius_m)
         out = smoother.run(bad)
         assert np.all(np.isfinite(out[started])) and smoother.rejected_inputs > 0
-        if recovers:
-            np.testing.assert_allclose(out[-1, :2], clean[-1, :2], atol=0.002)
+        np.testing.assert_allclose(out[-1], clean[-1], atol=0.002)
     forces = steps.forces.copy()
     forces[window] = 0.0
     contact = steps.contact.copy()
