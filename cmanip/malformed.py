@@ -16,7 +16,10 @@ A loader's answer is one of:
   ``ConfigError`` and the format errors, or an ``OSError``) whose message names the file;
 - ``accepted``: the file loaded. Some mutations leave a valid file (an optional field
   removed, a value changed to another legal one); the rest are silent defaults. Each is
-  listed so the two can be told apart;
+  listed so the two can be told apart, and those whose mutation changed a value but whose
+  loaded object is identical to the unmutated file's (compared field by field, arrays by
+  their bytes) are counted apart as ``ignored``: the loader dropped or overrode the value
+  without a word;
 - ``other``: any other exception, or an error that does not name the file: what a user
   would see as a traceback or a riddle. Listed with its message.
 """
@@ -24,7 +27,10 @@ A loader's answer is one of:
 from __future__ import annotations
 
 import copy
+import dataclasses
+import hashlib
 import math
+import re
 import tempfile
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -71,6 +77,7 @@ class Outcome:
     tried: int = 0
     clear: int = 0
     accepted: list[str] = field(default_factory=list)
+    ignored: list[str] = field(default_factory=list)
     other: list[str] = field(default_factory=list)
 
 
@@ -177,11 +184,22 @@ def yaml_mutations(text: str) -> Iterator[tuple[str, Callable[[], bytes]]]:
     for path in _paths(doc):
         where = ".".join(str(k) for k in path)
         yield f"{where}: removed", partial(_mutated, doc, path, None, True)
+        current = _get(doc, path)
         for name, value in WRONG_VALUES:
+            if _same_value(current, value):  # not a mutation (a zero already zero)
+                continue
             yield f"{where}: {name}", partial(_mutated, doc, path, value, False)
     for path in [()] + [p for p in _paths(doc) if isinstance(_get(doc, p), dict)]:
         yield (f"{'.'.join(map(str, path)) or '(top)'}: extra field",
                partial(_mutated, doc, (*path, "unexpected_field"), 1, False))
+
+
+def _same_value(current, value) -> bool:
+    """Whether a YAML field holding ``current`` would be left as it is by ``value``."""
+    numbers = (int, float)
+    if type(current) in numbers and type(value) in numbers:
+        return current == value
+    return type(current) is type(value) and current == value
 
 
 def _mutated(doc, path, value, delete: bool) -> bytes:
@@ -214,6 +232,8 @@ def table_mutations(text: str) -> Iterator[tuple[str, Callable[[], bytes]]]:
         numbers = [t for t in tokens if _is_number(t)]
         if numbers:
             for bad in BAD_NUMBERS:
+                if _is_number(bad) and _same_number(bad, numbers[-1]):
+                    continue  # not a mutation (nan for nan, -1 for -1.0)
                 changed = lines[i].replace(numbers[-1], bad, 1)
                 yield (f"line {i + 1}: {numbers[-1]} -> {bad}",
                        _joined(lines[:i] + [changed] + lines[i + 1:]))
@@ -221,6 +241,11 @@ def table_mutations(text: str) -> Iterator[tuple[str, Callable[[], bytes]]]:
 
 def _joined(lines: list[str]) -> Callable[[], bytes]:
     return partial(str.encode, "\n".join(lines))
+
+
+def _same_number(a: str, b: str) -> bool:
+    x, y = float(a), float(b)
+    return x == y or (math.isnan(x) and math.isnan(y))
 
 
 def _is_number(token: str) -> bool:
@@ -247,9 +272,10 @@ def file_mutations(raw: bytes) -> Iterator[tuple[str, bytes]]:
 # ------------------------------------------------------------------------- measuring
 
 def classify(kind: FileKind, path: Path) -> tuple[str, str]:
-    """(``clear`` | ``accepted`` | ``other``, the message) for one file."""
+    """(``clear`` | ``accepted`` | ``other``, the message, or for ``accepted`` the loaded
+    object's :func:`fingerprint`) for one file."""
     try:
-        kind.load(path)
+        loaded = kind.load(path)
     except (ValueError, OSError) as err:
         message = str(err)
         if path.name in message:
@@ -257,7 +283,41 @@ def classify(kind: FileKind, path: Path) -> tuple[str, str]:
         return "other", f"{type(err).__name__} without the file name: {message}"
     except Exception as err:  # noqa: BLE001 - counting what escapes is the point
         return "other", f"{type(err).__name__}: {err}"
-    return "accepted", ""
+    return "accepted", fingerprint(loaded, path)
+
+
+def fingerprint(obj, path: Path) -> str:
+    """What a loader made of the file ``path``, as text that two loads share exactly when
+    they are equal: dataclasses field by field, arrays by shape, dtype and bytes, the rest
+    by ``repr``; the file's own path and name left out (the mutants and their reference
+    are written under different names)."""
+    def walk(value) -> str:
+        if dataclasses.is_dataclass(value) and not isinstance(value, type):
+            return type(value).__name__ + "(" + ",".join(
+                f"{f.name}={walk(getattr(value, f.name))}"
+                for f in dataclasses.fields(value)) + ")"
+        if isinstance(value, np.ndarray):
+            data = np.ascontiguousarray(value)
+            return f"array{data.shape}{data.dtype}:{hashlib.sha1(data.tobytes()).hexdigest()}"
+        if isinstance(value, (list, tuple)):
+            return "[" + ",".join(walk(v) for v in value) + "]"
+        if isinstance(value, dict):
+            return "{" + ",".join(f"{k!r}:{walk(v)}" for k, v in value.items()) + "}"
+        return repr(value)
+
+    text = walk(obj).replace(str(path), "<file>")
+    return re.sub(rf"{re.escape(path.stem)}\b", "<name>", text)
+
+
+VALUE_CHANGES = {name for name, _ in WRONG_VALUES}
+"""The YAML mutations that change a value (rather than remove or add a field)."""
+
+
+def _changes_a_value(label: str) -> bool:
+    """Whether the mutation ``label`` replaced a value: a YAML field's by one of
+    :data:`WRONG_VALUES`, or a number in a table line."""
+    last = label.rsplit(": ", 1)[-1]
+    return last in VALUE_CHANGES or " -> " in last
 
 
 def measure(*, limit_per_kind: int | None = None, progress: bool = True) -> dict:
@@ -284,6 +344,11 @@ def measure(*, limit_per_kind: int | None = None, progress: bool = True) -> dict
             outcome = Outcome()
             folder = work / kind.name.replace(":", "_")
             folder.mkdir()
+            references = {}
+            for i, source in enumerate(kind.valid):
+                path = folder / f"reference_{i}{kind.suffix}"
+                path.write_bytes(Path(source).read_bytes())
+                references[Path(source).name] = classify(kind, path)[1]
             for i, (label, make) in enumerate(mutants):
                 path = folder / f"mutant_{i}{kind.suffix}"
                 path.write_bytes(make())
@@ -293,6 +358,9 @@ def measure(*, limit_per_kind: int | None = None, progress: bool = True) -> dict
                     outcome.clear += 1
                 elif verdict == "accepted":
                     outcome.accepted.append(label)
+                    if (_changes_a_value(label)
+                            and message == references[label.split(": ", 1)[0]]):
+                        outcome.ignored.append(label)
                 else:
                     outcome.other.append(f"{label}: {message}"[:300])
             per_kind[kind.name] = outcome
@@ -300,12 +368,15 @@ def measure(*, limit_per_kind: int | None = None, progress: bool = True) -> dict
         "malformed_tried": sum(o.tried for o in per_kind.values()),
         "malformed_clear_error": sum(o.clear for o in per_kind.values()),
         "malformed_accepted": sum(len(o.accepted) for o in per_kind.values()),
+        "malformed_ignored": sum(len(o.ignored) for o in per_kind.values()),
         "malformed_other": sum(len(o.other) for o in per_kind.values()),
         "kinds": {k: {"tried": o.tried, "clear_error": o.clear,
-                      "accepted": len(o.accepted), "other": len(o.other)}
+                      "accepted": len(o.accepted), "ignored": len(o.ignored),
+                      "other": len(o.other)}
                   for k, o in per_kind.items()},
         "other_cases": {k: o.other for k, o in per_kind.items() if o.other},
         "accepted_cases": {k: o.accepted for k, o in per_kind.items() if o.accepted},
+        "ignored_cases": {k: o.ignored for k, o in per_kind.items() if o.ignored},
     }
 
 
