@@ -3,7 +3,7 @@
 Parts: ``malformed`` (:mod:`cmanip.malformed`), ``faults``
 (:mod:`experiments.fault_bench`), ``budgets`` and ``memory``
 (:mod:`experiments.load_bench`). The report holds each part's details and, at its top,
-``malformed_tried``, ``malformed_clear_error``, ``faults_injected``, ``faults_recovered``
+``malformed_tried``, ``malformed_clear_error``, ``malformed_ignored``, ``faults_injected``, ``faults_recovered``
 (the robust filters, with the outlier gate; ``faults_recovered_plain``: the filters as
 the thesis has them; ``sham_recovered`` of ``sham_runs``: the recovery rule's pass rate
 without a fault, its baseline),
@@ -25,8 +25,10 @@ MESHCAT_SESSIONS = 20
 def measure_robustness(parts, *, limit_per_kind: int | None = None, fault_trials: int = 3,
                        decisions: int = 200, budget_s: float = 0.1,
                        smoother_updates: int = 10_000, cache_dir: Path | None = None,
-                       seed: int = 0, progress: bool = True) -> dict:
-    """Measure ``parts`` and print a summary of each; the report (module docstring)."""
+                       seed: int = 0, progress: bool = True, backend=None) -> dict:
+    """Measure ``parts`` and print a summary of each; the report (module docstring).
+    ``backend`` (an :class:`experiments.runner.Backend`; None: serial) runs the fault
+    part's jobs; the budgets and memory parts measure this process and stay in it."""
     report: dict = {}
     if "malformed" in parts:
         from cmanip.malformed import measure
@@ -36,13 +38,14 @@ def measure_robustness(parts, *, limit_per_kind: int | None = None, fault_trials
         print(f"malformed inputs: {malformed['malformed_tried']} tried, "
               f"{malformed['malformed_clear_error']} clear errors naming the file, "
               f"{malformed['malformed_accepted']} loaded (a legal variation or a silent "
-              f"default; listed under accepted_cases), {malformed['malformed_other']} other "
-              f"(listed under other_cases)")
+              f"default; listed under accepted_cases; {malformed['malformed_ignored']} of "
+              f"them with a changed value the loader ignored, under ignored_cases), "
+              f"{malformed['malformed_other']} other (listed under other_cases)")
         for kind, entry in malformed["kinds"].items():
             print(f"  {kind:32s} {entry['tried']:5d} tried, {entry['clear_error']:5d} clear, "
                   f"{entry['accepted']:4d} loaded, {entry['other']:3d} other")
     if "faults" in parts:
-        report.update(_faults(fault_trials, seed, progress))
+        report.update(_faults(fault_trials, seed, progress, backend))
     if "budgets" in parts:
         report.update(_budgets(decisions, budget_s, cache_dir, seed, progress))
     if "memory" in parts:
@@ -50,10 +53,12 @@ def measure_robustness(parts, *, limit_per_kind: int | None = None, fault_trials
     return report
 
 
-def _faults(trials: int, seed: int, progress: bool) -> dict:
+def _faults(trials: int, seed: int, progress: bool, backend) -> dict:
     from experiments.fault_bench import SHAM, measure_faults
+    from experiments.runner import Backend
 
-    faults = measure_faults(trials=trials, seed=seed, progress=progress)
+    faults = measure_faults(trials=trials, seed=seed, progress=progress,
+                            backend=backend or Backend("serial"))
     outcomes = faults["fault_outcomes"]
     print(f"faults: {faults['faults_injected']} injected, {faults['faults_recovered']} "
           f"recovered by the robust filters ({faults['faults_recovered_plain']} by the "

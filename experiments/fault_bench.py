@@ -51,6 +51,7 @@ Estimators and faults:
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 from tqdm import tqdm
@@ -64,6 +65,7 @@ from estimation.pushing.smoother import VisuoTactileSmoother, recommended_settin
 from experiments.configest_study import ConfigestSettings, arm_world, build_filter
 from experiments.mpf_study import FilterSpec, TrialSettings, simulate_truth
 from experiments.mpf_study import build_filter as build_hand_filter
+from experiments.runner import Backend, Job, map_trials
 from models.objects import ObjectSpec
 from models.planar.world import PlanarWorld
 from models.se2 import compose
@@ -257,77 +259,93 @@ def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray
     return outcomes
 
 
+def hand_trials(trials: int, *, seed: int = 0) -> list[int]:
+    """The first ``trials`` pushes of the MPF study's default settings that touch early
+    enough for a fault after the first contact to leave a quarter of the push after it."""
+    settings = TrialSettings()
+    world = _hand_world()
+    chosen, trial = [], 0
+    while len(chosen) < trials:
+        touching = world.in_contact(simulate_truth(settings, seed, trial).true_states)
+        first = int(np.argmax(touching))
+        if touching.any() and first + 2 * FAULT_STEPS + 2 < 0.75 * len(touching):
+            chosen.append(trial)
+        trial += 1
+    return chosen
+
+
+@lru_cache(maxsize=1)
+def _hand_world() -> PlanarWorld:
+    settings = TrialSettings()
+    return PlanarWorld.load(settings.object, settings.sensors)
+
+
+def hand_filter_faults(trial: int, spec: FilterSpec, f: int, *, seed: int = 0
+                       ) -> list[FaultOutcome]:
+    """Every fault of :data:`FILTER_FAULTS` and the sham in push ``trial`` of the MPF
+    study's default settings for the hand filter ``spec`` (the ``f``-th of its family,
+    which picks its random stream)."""
+    settings = TrialSettings()
+    world = _hand_world()
+    truth = simulate_truth(settings, seed, trial)
+    first = int(np.argmax(world.in_contact(truth.true_states)))
+    actions = np.repeat(truth.action[None], len(truth.true_states), axis=0)
+
+    def error(belief, t):
+        return belief.rmse(truth.true_states[t])[0]
+
+    def make(robust, draw):
+        rng = np.random.default_rng([seed, trial, 1, f] + [draw] * (draw > 0))
+        filt = build_hand_filter(world, settings, spec, truth.mean, truth.std, truth.action,
+                                 seed, rng,
+                                 outlier_log_evidence=OUTLIER_GATE if robust else None)
+        belief = ParticleBelief.uniform(world.sample_gaussian(
+            truth.mean, truth.std, settings.particles, rng=rng))
+        return filt, belief, rng
+
+    return _filter_outcomes(f"hand/{spec.label}", make, actions, truth.observations,
+                            first + 2, error, trial, TOLERANCE["hand"], hand_motion)
+
+
 def hand_faults(trials: int, *, seed: int = 0, filters: tuple[FilterSpec, ...] = HAND_FILTERS,
                 progress: bool = True) -> list[FaultOutcome]:
     """Every fault of :data:`FILTER_FAULTS` in the first ``trials`` pushes with contact of
-    the MPF study's default settings, for each of ``filters``."""
-    settings = TrialSettings()
-    world = PlanarWorld.load(settings.object, settings.sensors)
-    outcomes, trial, done = [], 0, 0
-    bar = tqdm(total=trials * len(filters), desc="hand filters", disable=not progress,
-               leave=False)
-    while done < trials:
-        truth = simulate_truth(settings, seed, trial)
-        touching = world.in_contact(truth.true_states)
-        first = int(np.argmax(touching))
-        if touching.any() and first + 2 * FAULT_STEPS + 2 < 0.75 * len(touching):
-            actions = np.repeat(truth.action[None], len(truth.true_states), axis=0)
-
-            def error(belief, t, truth=truth):
-                return belief.rmse(truth.true_states[t])[0]
-
-            for f, spec in enumerate(filters):
-                def make(robust, draw, f=f, spec=spec, truth=truth, trial=trial):
-                    rng = np.random.default_rng([seed, trial, 1, f] + [draw] * (draw > 0))
-                    filt = build_hand_filter(world, settings, spec, truth.mean, truth.std,
-                                             truth.action, seed, rng,
-                                             outlier_log_evidence=OUTLIER_GATE if robust
-                                             else None)
-                    belief = ParticleBelief.uniform(world.sample_gaussian(
-                        truth.mean, truth.std, settings.particles, rng=rng))
-                    return filt, belief, rng
-
-                outcomes += _filter_outcomes(f"hand/{spec.label}", make, actions,
-                                             truth.observations, first + 2, error, trial,
-                                             TOLERANCE["hand"], hand_motion)
-                bar.update()
-            done += 1
-        trial += 1
-    bar.close()
-    return outcomes
+    the MPF study's default settings (:func:`hand_trials`), for each of ``filters``, in
+    this process."""
+    jobs = [(trial, spec, f) for trial in hand_trials(trials, seed=seed)
+            for f, spec in enumerate(filters)]
+    return [outcome for trial, spec, f in tqdm(jobs, desc="hand filters",
+                                               disable=not progress, leave=False)
+            for outcome in hand_filter_faults(trial, spec, f, seed=seed)]
 
 
-def arm_faults(trials: int, *, seed: int = 0, progress: bool = True) -> list[FaultOutcome]:
-    """Every fault of :data:`FILTER_FAULTS` in ``trials`` experiments of the 3-DOF arm, for
-    the CPF and MPF-Ball of the configuration study (n = 250)."""
+@lru_cache(maxsize=1)
+def _arm_setup():
     settings = ConfigestSettings(arms=("3dof",), trials=2)
-    world = arm_world("3dof", settings.process_noise_radius_rad)
-    outcomes = []
-    bar = tqdm(total=trials * len(ARM_FILTERS), desc="arm filters", disable=not progress,
-               leave=False)
-    for trial in range(trials):
-        trajectory = world.simulate(rng=np.random.default_rng((seed, 31, trial)))
-        start = int(np.argmax(world.true_contacts(trajectory.q_true[1:]).any(axis=1))) + 2
+    return settings, arm_world("3dof", settings.process_noise_radius_rad)
 
-        def error(belief, t, trajectory=trajectory):
-            return joint_rmse(world, belief, trajectory.q_true[t + 1])
 
-        for f, kind in enumerate(ARM_FILTERS):
-            def make(robust, draw, f=f, kind=kind, trajectory=trajectory, trial=trial):
-                rng = np.random.default_rng([seed, 31, trial, 1 + f] + [draw] * (draw > 0))
-                filt, n, _ = build_filter(world, kind, settings,
-                                          outlier_log_evidence=OUTLIER_GATE if robust
-                                          else None)
-                belief = ParticleBelief.uniform(world.initial_belief_states(
-                    trajectory.encoders[0], n, rng=rng), world.angular)
-                return filt, belief, rng
+def arm_filter_faults(trial: int, kind: str, f: int, *, seed: int = 0) -> list[FaultOutcome]:
+    """Every fault of :data:`FILTER_FAULTS` and the sham in experiment ``trial`` of the
+    3-DOF arm for the configuration filter ``kind`` (the ``f``-th of
+    :data:`ARM_FILTERS`) of the configuration study (n = 250)."""
+    settings, world = _arm_setup()
+    trajectory = world.simulate(rng=np.random.default_rng((seed, 31, trial)))
+    start = int(np.argmax(world.true_contacts(trajectory.q_true[1:]).any(axis=1))) + 2
 
-            outcomes += _filter_outcomes(f"arm/{kind}", make, trajectory.commanded,
-                                         trajectory.contacts[1:], start, error, trial,
-                                         TOLERANCE["arm"])
-            bar.update()
-    bar.close()
-    return outcomes
+    def error(belief, t):
+        return joint_rmse(world, belief, trajectory.q_true[t + 1])
+
+    def make(robust, draw):
+        rng = np.random.default_rng([seed, 31, trial, 1 + f] + [draw] * (draw > 0))
+        filt, n, _ = build_filter(world, kind, settings,
+                                  outlier_log_evidence=OUTLIER_GATE if robust else None)
+        belief = ParticleBelief.uniform(world.initial_belief_states(
+            trajectory.encoders[0], n, rng=rng), world.angular)
+        return filt, belief, rng
+
+    return _filter_outcomes(f"arm/{kind}", make, trajectory.commanded,
+                            trajectory.contacts[1:], start, error, trial, TOLERANCE["arm"])
 
 
 def inject_smoother(steps: PushingSteps, fault: str, start: int) -> tuple[PushingSteps, slice]:
@@ -400,7 +418,23 @@ def simulated_push(seed: int = 0) -> tuple[PushingSteps, np.ndarray]:
     return PushingSteps.from_log(run.log), spec.footprint()
 
 
-def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True) -> dict:
+def fault_job(family: str, trial: int, index: int, seed: int) -> list[FaultOutcome]:
+    """One job of the fault bench (:func:`measure_faults`): the ``index``-th filter of
+    ``family`` (``hand``: :data:`HAND_FILTERS`, ``arm``: :data:`ARM_FILTERS`) in experiment
+    ``trial``, or the smoother (``family="smoother"``) on :func:`simulated_push`. Each
+    worker builds its worlds from these keys."""
+    if family == "hand":
+        return hand_filter_faults(trial, HAND_FILTERS[index], index, seed=seed)
+    if family == "arm":
+        return arm_filter_faults(trial, ARM_FILTERS[index], index, seed=seed)
+    if family == "smoother":
+        steps, polygon = simulated_push(seed)
+        return smoother_faults(steps, polygon, progress=False)
+    raise ValueError(f"unknown fault family {family!r}")
+
+
+def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True,
+                   backend: Backend = Backend("serial")) -> dict:
     """Every estimator under every fault: ``faults_injected`` (each fault once),
     ``faults_recovered`` (the robust filters, the smoother as it is),
     ``faults_recovered_plain`` (the filters as the thesis has them),
@@ -409,11 +443,17 @@ def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True) -> 
     pass rate without a fault), ``faults_non_finite``
     (runs with a NaN or infinite estimate, either way), ``faults_reported`` of
     ``faults_non_finite_input`` (the faults feeding NaN or infinite inputs, which the
-    estimator must report rejecting) and each outcome."""
-    steps, polygon = simulated_push(seed)
-    outcomes = (hand_faults(trials, seed=seed, progress=progress)
-                + arm_faults(trials, seed=seed, progress=progress)
-                + smoother_faults(steps, polygon, progress=progress))
+    estimator must report rejecting) and each outcome. One job per (family, experiment,
+    filter) and one for the smoother, on ``backend`` (:func:`experiments.runner.map_trials`:
+    the outcomes do not depend on it)."""
+    jobs = [Job(f"hand/{trial}/{spec.label}", ("hand", trial, f, seed))
+            for trial in hand_trials(trials, seed=seed) for f, spec in enumerate(HAND_FILTERS)]
+    jobs += [Job(f"arm/{trial}/{kind}", ("arm", trial, f, seed))
+             for trial in range(trials) for f, kind in enumerate(ARM_FILTERS)]
+    jobs.append(Job("smoother", ("smoother", 0, 0, seed)))
+    outcomes = [outcome for result in map_trials(fault_job, jobs, backend=backend,
+                                                 desc="faults", progress=progress)
+                for outcome in result]
     shams = [o for o in outcomes if o.fault == SHAM]
     faulty = [o for o in outcomes if o.fault != SHAM]
     # each fault once: the smoother's outcome and the robust filters'

@@ -9,8 +9,10 @@ import pytest
 
 from experiments.fault_bench import (
     FILTER_FAULTS,
+    HAND_FILTERS,
     SHAM,
     FaultOutcome,
+    fault_job,
     hand_faults,
     hand_motion,
     inject,
@@ -24,6 +26,7 @@ from experiments.load_bench import (
     meshcat_sessions,
 )
 from experiments.mpf_study import FilterSpec
+from experiments.runner import Backend, Job, map_trials
 
 
 def test_inject_puts_each_fault_in_its_window():
@@ -64,6 +67,33 @@ def test_inject_smoother_freezes_and_drops(synthetic_push_log):
     assert np.isfinite(blind.rods[window]).all()  # the arm still knows where the rods are
     with pytest.raises(ValueError, match="unknown fault"):
         inject_smoother(steps, "gremlins", 100)
+
+
+def test_a_fault_job_gives_the_same_outcomes_in_a_worker_process():
+    serial = fault_job("hand", 0, 0, 0)  # the hand CPF in the first push
+    pooled = map_trials(fault_job, [Job("hand/0/cpf", ("hand", 0, 0, 0))],
+                        backend=Backend("processes", 1), progress=False)[0]
+    assert pooled == serial and len(serial) == 2 * (len(FILTER_FAULTS) + 1)
+
+
+def test_the_fault_bench_runs_one_job_per_filter_and_experiment(monkeypatch):
+    import experiments.fault_bench as bench
+
+    seen = []
+
+    def job(family, trial, index, seed):
+        seen.append((family, trial, index))
+        return [FaultOutcome(family, "nan-action", trial, True, True, True, False, 0.0, 0.0,
+                             0.0, 0.0, 0.0, True, True)]
+
+    monkeypatch.setattr(bench, "fault_job", job)
+    report = bench.measure_faults(trials=2, progress=False, backend=Backend("serial"))
+    hands = [s for s in seen if s[0] == "hand"]
+    assert len(hands) == 2 * len(HAND_FILTERS) and ("smoother", 0, 0) in seen
+    assert len([s for s in seen if s[0] == "arm"]) == 4
+    assert report["faults_injected"] == len(seen) == report["faults_recovered"]
+    with pytest.raises(ValueError, match="unknown fault family"):
+        fault_job("gremlins", 0, 0, 0)
 
 
 def test_a_cpf_under_every_fault_stays_finite_and_reports_what_it_can():
