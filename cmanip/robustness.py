@@ -3,7 +3,8 @@
 Parts: ``malformed`` (:mod:`cmanip.malformed`), ``faults``
 (:mod:`experiments.fault_bench`), ``budgets`` and ``memory``
 (:mod:`experiments.load_bench`). The report holds each part's details and, at its top,
-``malformed_tried``, ``malformed_clear_error``, ``malformed_ignored``, ``faults_injected``, ``faults_recovered``
+``malformed_tried``, ``malformed_clear_error``, ``malformed_ignored``, ``faults_injected``,
+``faults_recovered``
 (the robust filters, with the outlier gate; ``faults_recovered_plain``: the filters as
 the thesis has them; ``sham_recovered`` of ``sham_runs``: the recovery rule's pass rate
 without a fault, its baseline),
