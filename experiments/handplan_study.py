@@ -54,6 +54,7 @@ from planning.hand.discretization import HandProblemSpec
 from planning.hand.model import HandPOMDP, build_hand_pomdp
 from planning.hand.policy import HandPolicy, qmdp_vectors
 from planning.hand.precontact import PreContactPlan, PreContactPlanner, PreContactSettings
+from planning.hand.solution import SOLVE_SECONDS_CEILING
 from planning.pomdp.cassandra import write_pomdp
 from planning.pomdp.point_based import AlphaVectorPolicy, PointBasedSolver
 from planning.pomdp.progress import SolverProgressBar
@@ -100,7 +101,7 @@ class HandplanSettings:
         if self.solve_seconds <= 0:
             raise ValueError("solve_seconds must be > 0")
         check_ranges(self, counts=("belief_particles", "precontact_particles", "solve_trials"),
-                     at_most={"solve_seconds": 86400.0})
+                     at_most={"solve_seconds": SOLVE_SECONDS_CEILING})
 
 
 @dataclass

@@ -35,6 +35,11 @@ CACHE_VERSION = 2  # 2: the point-based solver samples by SARSOP's rule
 POLICIES = ("qmdp", "pomdp")
 
 
+SOLVE_SECONDS_CEILING = 86400.0
+"""The longest point-based solve a settings file may ask for (s): a day; a longer one is
+taken for a mistyped exponent."""
+
+
 @dataclass(frozen=True)
 class HandSolveSettings:
     """Attributes:
@@ -60,7 +65,8 @@ class HandSolveSettings:
     def __post_init__(self):
         if self.solve_seconds <= 0 or self.belief_count < 1 or self.belief_particles < 1:
             raise ValueError("solve_seconds must be > 0, belief_count and belief_particles >= 1")
-        check_ranges(self, counts=("solve_trials",), at_most={"solve_seconds": 86400.0})
+        check_ranges(self, counts=("solve_trials",),
+                     at_most={"solve_seconds": SOLVE_SECONDS_CEILING})
 
     def key(self) -> str:
         """A short hash of every setting (and the cache format)."""
