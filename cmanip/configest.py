@@ -52,13 +52,17 @@ def register(commands) -> None:
 
 
 def mpf_variant_options(parser, defaults) -> None:
-    """``--constraints``, ``--dual-share`` and ``--metric``, the configuration MPF's
-    variants beyond the thesis (defaults from ``defaults``, a settings dataclass with the
-    three fields)."""
+    """``--ball-radius``, and ``--constraints``, ``--dual-share``, ``--metric`` and
+    ``--dual-density``, the configuration MPF's variants beyond the thesis (defaults from
+    ``defaults``, a settings dataclass with these fields)."""
+    from estimation.configuration.history import DUAL_DENSITIES
     from estimation.configuration.manifold import METRICS
     from estimation.configuration.projection import CONSTRAINTS
     from estimation.particles.filters import DUAL_SHARES
 
+    setting_option(parser, "--ball-radius", "three kernel bandwidths; with --dual-density "
+                   "history the arm's offset_sd_rad", "MPF-Ball's r_b (rad; joint metric)",
+                   type=float)
     setting_option(parser, "--constraints", defaults.constraints,
                    "what a projected dual satisfies (active: the lit sensors touch, eq. "
                    "5.1; full: also every other sensor clear, the body out of penetration)",
@@ -70,6 +74,10 @@ def mpf_variant_options(parser, defaults) -> None:
     setting_option(parser, "--metric", defaults.metric,
                    "the metric of the projection's balls and steps (joint: joint space, "
                    "sec. 5.2; kernel: each joint in its kernel bandwidths)", choices=METRICS)
+    setting_option(parser, "--dual-density", defaults.dual_density,
+                   "how the MPF weighs its duals (kernel: the predicted particles' kernel "
+                   "density, sec. 4.2.3; history: the exact density of every reading so "
+                   "far, with joint-metric balls of the offset's sd)", choices=DUAL_DENSITIES)
 
 
 def proprioception_option(parser, defaults) -> None:
@@ -92,9 +100,10 @@ def _run(args: argparse.Namespace) -> int:
 
     check_outlier_gate(args)
     same = ("arm", "particles", "dual_particles", "mixing_rate", "seed", "tactile_error_rate",
-            "constraints", "dual_share", "metric", "proprioception")
+            "constraints", "dual_share", "metric", "dual_density", "proprioception")
     settings = overridden(ConfigestEpisodeSettings(), args, {
         **{key: key for key in same}, "outlier_gate": "outlier_log_evidence",
+        "ball_radius": "ball_radius_rad",
         "process_noise": "process_noise_radius_rad"})
     if not 0 <= settings.process_noise_radius_rad <= 0.5:
         raise ValueError(f"--process-noise must be in [0, 0.5] rad, got "

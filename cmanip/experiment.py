@@ -167,8 +167,6 @@ def _register_configest(studies) -> None:
     setting_option(ce, "--method", defaults.method, "projection root finder (gd: the "
                                                     "thesis' gradient descent)",
                    choices=("lm", "gd"))
-    setting_option(ce, "--ball-radius", "three kernel bandwidths",
-                   "MPF-Ball's r_b (rad)", type=float)
     mpf_variant_options(ce, defaults)
     proprioception_option(ce, defaults)
     runner_options(ce)
@@ -187,7 +185,8 @@ def _configest(args: argparse.Namespace) -> int:
     settings = overridden(load_config(ConfigestSettings, args.config), args, {
         "trials": "trials", "seed": "seed", "method": "method",
         "ball_radius": "ball_radius_rad", "constraints": "constraints",
-        "dual_share": "dual_share", "metric": "metric", "proprioception": "proprioception"})
+        "dual_share": "dual_share", "metric": "metric", "dual_density": "dual_density",
+        "proprioception": "proprioception"})
     if "arm" in vars(args):
         settings = replace(settings, arms=ARMS if args.arm == "all" else (args.arm,))
     for arm in settings.arms:  # a bad arm file (or link) fails before any trial runs

@@ -22,12 +22,17 @@ import json
 import time
 import zlib
 from dataclasses import asdict, dataclass
-from functools import lru_cache
+from functools import lru_cache, partial
 from pathlib import Path
 
 import numpy as np
 
 from estimation.configuration.belief import joint_rmse
+from estimation.configuration.history import (
+    ReadingHistory,
+    check_dual_density,
+    dual_ball_radius,
+)
 from estimation.configuration.manifold import (
     ExplicitTwoLinkManifold,
     ProjectionManifold,
@@ -74,6 +79,8 @@ class ConfigestSettings:
         proprioception: what every filter takes from the encoders, ``first`` (their
             first reading) or ``steps`` (also each step's motion; see
             :mod:`estimation.configuration.proprioception`).
+        dual_density: how the MPFs weigh their duals, ``kernel`` (sec. 4.2.3) or
+            ``history`` (see :mod:`estimation.configuration.history`).
     """
 
     arms: tuple[str, ...] = ARMS
@@ -89,6 +96,7 @@ class ConfigestSettings:
     dual_share: str = "fixed"
     metric: str = "joint"
     proprioception: str = "first"
+    dual_density: str = "kernel"
 
     def __post_init__(self):
         if self.trials < 2:
@@ -111,6 +119,7 @@ class ConfigestSettings:
         if self.dual_share not in DUAL_SHARES:
             raise ValueError(f"dual_share must be one of {', '.join(DUAL_SHARES)}, got "
                              f"{self.dual_share!r}")
+        check_dual_density(self.dual_density, self.metric, self.dual_share)
 
 
 def filters_for(arm: str) -> tuple[str, ...]:
@@ -167,7 +176,8 @@ def build_filter(world: ArmWorld, kind: str, settings: ConfigestSettings, *,
     strategy = kind.split("-", 1)[1]
     manifold = (ExplicitTwoLinkManifold(world) if strategy == "explicit" else
                 ProjectionManifold(world, strategy=strategy, method=settings.method,
-                                   ball_radius_rad=settings.ball_radius_rad,
+                                   ball_radius_rad=dual_ball_radius(
+                                       world, settings.dual_density, settings.ball_radius_rad),
                                    constraints=settings.constraints,
                                    metric=settings.metric))
     filt = make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
@@ -183,9 +193,21 @@ def run_filter(world: ArmWorld, trajectory, kind: str, settings: ConfigestSettin
     belief = ParticleBelief.uniform(
         world.initial_belief_states(trajectory.encoders[0], n, rng=rng), world.angular)
     rmse, times = [], []
+    # the commanded configurations relative to the start: all the history needs
+    commanded = np.cumsum(trajectory.commanded, axis=0)
+    history = (ReadingHistory.begin(trajectory.encoders[0], np.zeros(world.dof),
+                                    world.sensor_count)
+               if manifold is not None and settings.dual_density == "history" else None)
     for t, action in enumerate(trajectory.commanded):
         start = time.perf_counter()
-        belief, _ = filt.update(belief, action, trajectory.contacts[t + 1], rng=rng)
+        readings = trajectory.contacts[t + 1]
+        if history is None:
+            belief, _ = filt.update(belief, action, readings, rng=rng)
+        else:
+            belief, _ = filt.update(belief, action, readings, rng=rng,
+                                    dual_log_density=partial(history.log_density, world,
+                                                             commanded=commanded[t]))
+            history = history.appended(commanded[t], readings)
         if settings.proprioception == "steps":
             belief = weigh_encoder_step(world, belief, action, world.angle_difference(
                 trajectory.encoders[t + 1], trajectory.encoders[t]))

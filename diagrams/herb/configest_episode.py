@@ -32,6 +32,7 @@ from tqdm import tqdm
 from diagrams.herb.configuration import ArmBeliefDrawer, ConfigurationEstimator, Encoders
 from diagrams.herb.station import add_herb_plant, add_meshcat
 from diagrams.tactile_sensor import TactileSensor
+from estimation.configuration.history import check_dual_density, dual_ball_radius
 from estimation.configuration.manifold import ProjectionManifold
 from estimation.configuration.proprioception import check_proprioception
 from estimation.particles.factory import make_filter
@@ -69,6 +70,9 @@ class ConfigestEpisodeSettings:
             (:class:`estimation.particles.filters.ManifoldParticleFilter`).
         metric: MPF-Ball's balls and projection in ``joint`` space (sec. 5.2) or in the
             ``kernel`` bandwidths (:mod:`estimation.configuration.manifold`).
+        dual_density: MPF-Ball's weights of its duals, the predicted particles' ``kernel``
+            density (sec. 4.2.3) or the readings' exact ``history`` density
+            (:mod:`estimation.configuration.history`, which also sets r_b).
         proprioception: what both estimators take from the encoders, ``first`` or
             ``steps`` (:mod:`estimation.configuration.proprioception`).
         outlier_log_evidence: both estimators' outlier gate (None: none, the thesis;
@@ -92,6 +96,7 @@ class ConfigestEpisodeSettings:
     constraints: str = "active"
     dual_share: str = "fixed"
     metric: str = "joint"
+    dual_density: str = "kernel"
     proprioception: str = "first"
     outlier_log_evidence: float | None = None
     tactile_error_rate: float | None = None
@@ -100,6 +105,7 @@ class ConfigestEpisodeSettings:
 
     def __post_init__(self):
         check_proprioception(self.proprioception)
+        check_dual_density(self.dual_density, self.metric, self.dual_share)
 
 
 def commanded_trajectory(spec: ArmSpec, seconds_per_step: float) -> PiecewisePolynomial:
@@ -161,7 +167,8 @@ def run_configest_episode(settings: ConfigestEpisodeSettings, out: Path, *,
             n = settings.particles
         else:
             filt = make_filter("mpf", world, ProjectionManifold(
-                world, strategy="ball", ball_radius_rad=settings.ball_radius_rad,
+                world, strategy="ball", ball_radius_rad=dual_ball_radius(
+                    world, settings.dual_density, settings.ball_radius_rad),
                 constraints=settings.constraints, metric=settings.metric),
                                dual_particles=settings.dual_particles,
                                mixing_rate=settings.mixing_rate,
@@ -170,7 +177,8 @@ def run_configest_episode(settings: ConfigestEpisodeSettings, out: Path, *,
             n = settings.particles - settings.dual_particles
         system = builder.AddSystem(ConfigurationEstimator(
             world, filt, particles=n, seed=settings.seed * 100 + e + 1, period_s=period,
-            encoder_steps=settings.proprioception == "steps"))
+            encoder_steps=settings.proprioception == "steps",
+            history=kind == "mpf-ball" and settings.dual_density == "history"))
         system.set_name(f"estimator_{kind}")
         builder.Connect(encoders.get_output_port(), system.GetInputPort("encoders"))
         builder.Connect(commanded.get_output_port(), system.GetInputPort("commanded"))

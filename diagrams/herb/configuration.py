@@ -8,6 +8,7 @@ pure cores of :mod:`estimation` and :mod:`models.arms`.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -16,6 +17,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
 from estimation.configuration.belief import configuration_belief
+from estimation.configuration.history import ReadingHistory
 from estimation.configuration.proprioception import weigh_encoder_step
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.filters import binary_reading
@@ -71,6 +73,8 @@ class EstimatorState:
         contact_updates: updates so far with a contact reading.
         rejected_updates: updates whose encoders (before the first), commanded
             configuration or readings held a NaN or infinity.
+        history: the readings so far, for the MPF's ``history`` dual density (None
+            without it).
     """
 
     belief: ParticleBelief | None
@@ -78,6 +82,7 @@ class EstimatorState:
     encoders: np.ndarray
     contact_updates: int = 0
     rejected_updates: int = 0
+    history: ReadingHistory | None = None
 
 
 class ConfigurationEstimator(LeafSystem):
@@ -108,14 +113,16 @@ class ConfigurationEstimator(LeafSystem):
         period_s: update period (s).
         encoder_steps: also weigh each update's encoder step (the ``steps``
             proprioception of :mod:`estimation.configuration.proprioception`).
+        history: keep the readings and give the filter (an MPF) their exact predicted
+            density for its duals (:mod:`estimation.configuration.history`).
     """
 
     def __init__(self, world: ArmWorld, filt, *, particles: int, seed: int,
-                 period_s: float, encoder_steps: bool = False):
+                 period_s: float, encoder_steps: bool = False, history: bool = False):
         super().__init__()
         self._world, self._filter = world, filt
         self._particles, self._seed, self._period = particles, seed, period_s
-        self._encoder_steps = encoder_steps
+        self._encoder_steps, self._history = encoder_steps, history
         dof = world.dof
         self._encoders = self.DeclareVectorInputPort("encoders", dof)
         self._commanded = self.DeclareVectorInputPort("commanded", dof)
@@ -144,13 +151,24 @@ class ConfigurationEstimator(LeafSystem):
             new = replace(current, rejected_updates=current.rejected_updates + 1)
         elif current.belief is None:
             states = self._world.initial_belief_states(encoders, self._particles, rng=rng)
+            history = (ReadingHistory.begin(encoders, commanded, self._world.sensor_count)
+                       if self._history else None)
             new = EstimatorState(ParticleBelief.uniform(states, self._world.angular),
-                                 commanded, encoders, 0, current.rejected_updates)
+                                 commanded, encoders, 0, current.rejected_updates, history)
         else:
             readings = binary_reading(self._contact.Eval(context))
             finite = readings.dtype == bool  # NaN readings: the filter leaves them out
             action = commanded - current.commanded
-            belief, _ = self._filter.update(current.belief, action, readings, rng=rng)
+            history = current.history
+            if history is None:
+                belief, _ = self._filter.update(current.belief, action, readings, rng=rng)
+            else:
+                belief, _ = self._filter.update(
+                    current.belief, action, readings, rng=rng,
+                    dual_log_density=partial(history.log_density, self._world,
+                                             commanded=commanded))
+                if finite:
+                    history = history.appended(commanded, readings)
             if self._encoder_steps:  # a non-finite reading or last reading: not weighed
                 belief = weigh_encoder_step(self._world, belief, action,
                                             self._world.angle_difference(
@@ -158,7 +176,7 @@ class ConfigurationEstimator(LeafSystem):
             new = EstimatorState(belief, commanded,
                                  encoders if np.isfinite(encoders).all() else current.encoders,
                                  current.contact_updates + int(finite and readings.any()),
-                                 current.rejected_updates + int(not finite))
+                                 current.rejected_updates + int(not finite), history)
         state.get_mutable_abstract_state(0).set_value(new)
         return EventStatus.Succeeded()
 

@@ -7,6 +7,7 @@ the planar hand-relative world, or a robot-configuration model).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -241,7 +242,12 @@ class ManifoldParticleFilter:
         self.dual_share = dual_share
 
     def update(self, belief: ParticleBelief, action: np.ndarray, observation: np.ndarray, *,
-               rng: np.random.Generator) -> tuple[ParticleBelief, UpdateDiagnostics]:
+               rng: np.random.Generator,
+               dual_log_density: Callable[[np.ndarray], np.ndarray] | None = None
+               ) -> tuple[ParticleBelief, UpdateDiagnostics]:
+        """One step of Alg. 4.2; ``dual_log_density`` maps duals (M, d) to log b+ (M,)
+        up to a constant (None: the kernel density of the predicted particles, sec. 4.2.3;
+        e.g. :class:`estimation.configuration.history.ReadingHistory`'s exact one)."""
         phi = self.mixing_rate
         predicted, rejected = _predict(self.world, belief, action, observation, rng)
         if rejected is not None:
@@ -265,7 +271,8 @@ class ManifoldParticleFilter:
             return _unweighted(belief, predicted, "outlier", evidence)
         if contact:
             if not failed:
-                dual_prior = log_density(duals, predicted, prior_w, angular=belief.angular)
+                dual_prior = (log_density(duals, predicted, prior_w, angular=belief.angular)
+                              if dual_log_density is None else dual_log_density(duals))
                 dual = _normalised(dual_prior)
                 if dual is not None:
                     dual_used = True

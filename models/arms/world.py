@@ -329,6 +329,17 @@ class ArmWorld:
         eps = ball_points(rng.random((n, self.dof + 1)), self.spec.proprio_noise_radius_rad)
         return self.normalise(np.asarray(encoders)[None] - dq - eps)
 
+    def initial_log_density(self, encoders: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """(K,) log density, up to a constant, of :meth:`initial_belief_states` for the
+        first reading ``encoders`` (dof,) at ``states`` (K, dof) rad: the Gaussian offset
+        convolved with the uniform noise ball, taken as a Gaussian of the summed variance
+        ``sd^2 + r_q^2 / (dof + 2)`` per joint (the ball's share is small where the offset
+        dominates, as in every arm file here)."""
+        variance = (self.spec.offset_sd_rad ** 2
+                    + self.spec.proprio_noise_radius_rad ** 2 / (self.dof + 2))
+        residual = self.angle_difference(np.asarray(encoders)[None], np.atleast_2d(states))
+        return -0.5 * (residual ** 2).sum(axis=1) / max(variance, 1e-12)
+
     def simulate(self, *, rng: np.random.Generator) -> ArmTrajectory:
         """The true arm along the commanded trajectory, and what it senses: an offset
         ``dq ~ N(0, sd^2 I)`` for the whole run; each step the commanded configuration,
