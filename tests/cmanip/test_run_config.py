@@ -117,3 +117,16 @@ def test_the_lat_despot_options_reach_the_episode_settings():
     episode = resolve_run(args).episode
     assert (episode.planner, episode.lat_despot_model, episode.lat_despot_outside) == (
         "lat-despot", "continuous", "return")
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--metric", "kernel"], "needs the joint metric, got 'kernel'"),
+    (["--dual-share", "density"], "goes with the fixed or evidence dual share"),
+])
+def test_the_history_dual_density_refuses_what_it_cannot_combine(flags, message, tmp_path,
+                                                                 capsys):
+    out = tmp_path / "x"
+    assert main(["configest", "run", "--dual-density", "history", *flags,
+                 "--out", str(out)]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
