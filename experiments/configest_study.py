@@ -204,10 +204,12 @@ def run_filter(world: ArmWorld, trajectory, kind: str, settings: ConfigestSettin
         if history is None:
             belief, _ = filt.update(belief, action, readings, rng=rng)
         else:
-            belief, _ = filt.update(belief, action, readings, rng=rng,
-                                    dual_log_density=partial(history.log_density, world,
-                                                             commanded=commanded[t]))
-            history = history.appended(commanded[t], readings)
+            belief, diagnostics = filt.update(belief, action, readings, rng=rng,
+                                              dual_log_density=partial(
+                                                  history.log_density, world,
+                                                  commanded=commanded[t]))
+            if not diagnostics.rejected:
+                history = history.appended(commanded[t], readings)
         if settings.proprioception == "steps":
             belief = weigh_encoder_step(world, belief, action, world.angle_difference(
                 trajectory.encoders[t + 1], trajectory.encoders[t]))

@@ -163,11 +163,11 @@ class ConfigurationEstimator(LeafSystem):
             if history is None:
                 belief, _ = self._filter.update(current.belief, action, readings, rng=rng)
             else:
-                belief, _ = self._filter.update(
+                belief, diagnostics = self._filter.update(
                     current.belief, action, readings, rng=rng,
                     dual_log_density=partial(history.log_density, self._world,
                                              commanded=commanded))
-                if finite:
+                if not diagnostics.rejected:  # neither non-finite nor gated as an outlier
                     history = history.appended(commanded, readings)
             if self._encoder_steps:  # a non-finite reading or last reading: not weighed
                 belief = weigh_encoder_step(self._world, belief, action,

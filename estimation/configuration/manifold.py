@@ -221,8 +221,8 @@ def union_of_balls(centers: np.ndarray, radius: float, n: int, *,
         points = centers[rng.integers(len(centers), size=k)] + scale * ball_points(
             rng.random((k, d + 1)), radius)
         diff = points[:, None, :] - centers[None]
-        if wrap:
-            diff = wrap_angle(diff)
+        if wrap:  # by rint, not wrap_angle's float modulo (six times slower at this size)
+            diff -= (2.0 * np.pi) * np.rint(diff * (0.5 / np.pi))
         diff = diff / scale
         cover = (np.einsum("kni,kni->kn", diff, diff) <= radius * radius).sum(axis=1)
         keep = rng.random(k) * np.maximum(cover, 1) < 1.0

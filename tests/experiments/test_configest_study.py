@@ -45,6 +45,9 @@ def test_bench_reports_update_times_and_the_signed_distance_speedup(tmp_path):
     assert main(["bench", "configest", "--arm", "2dof", "--json", str(report)]) == 0
     entry = json.loads(report.read_text())["2dof"]
     assert entry["cpf_update_ms"] > 0 and entry["mpf_ball_update_ms"] > 0
+    assert entry["mpf_ball_history_contact_update_ms"] > 0
+    assert entry["history_density_steps"] == entry["updates"] - 1
+    assert entry["history_density_ms_last_step"] > 0
     assert set(entry["root_finders"]) == {"gd", "lm"}
     assert entry["signed_distance_speedup"] > 1
 

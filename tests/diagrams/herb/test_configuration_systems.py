@@ -10,6 +10,7 @@ from pydrake.systems.analysis import Simulator
 from diagrams.herb.configest_episode import ConfigestEpisodeSettings, run_configest_episode
 from diagrams.herb.configuration import ConfigurationEstimator, Encoders, link_polylines
 from diagrams.meshcat import local_meshcat
+from estimation.configuration.manifold import ProjectionManifold
 from estimation.particles.factory import make_filter
 from models.arms.spec import ArmSpec
 from models.arms.world import ArmWorld
@@ -147,3 +148,30 @@ def test_estimator_weighs_each_encoder_step_and_skips_a_non_finite_one():
     state = context.get_abstract_state(0).get_value()
     assert np.ptp(state.belief.log_weights) == 0.0  # resampled, then not weighed
     np.testing.assert_allclose(state.encoders, start + [0.1, 0])
+
+
+def test_estimator_history_records_the_readings_its_filter_weighed():
+    """With ``history`` the estimator keeps the readings for the MPF's exact dual density:
+    a weighed reading is recorded with its command, a NaN one (not weighed) is not."""
+    world = two_link()
+    manifold = ProjectionManifold(world, strategy="ball", ball_radius_rad=2.0)
+    estimator = ConfigurationEstimator(
+        world, make_filter("mpf", world, manifold, dual_particles=5), particles=50, seed=0,
+        period_s=0.1, history=True)
+    context = estimator.CreateDefaultContext()
+    start = np.array(world.spec.start_rad)
+    estimator.GetInputPort("encoders").FixValue(context, start)
+    estimator.GetInputPort("commanded").FixValue(context, start)
+    estimator.GetInputPort("contact").FixValue(context, [0.0])
+    simulator = Simulator(estimator, context)
+    simulator.AdvanceTo(0.05)
+    begun = simulator.get_context().get_abstract_state(0).get_value().history
+    np.testing.assert_allclose(begun.encoders, start)
+    assert len(begun.readings) == 0
+    estimator.GetInputPort("commanded").FixValue(simulator.get_context(), start + [0.1, 0])
+    simulator.AdvanceTo(0.15)
+    estimator.GetInputPort("contact").FixValue(simulator.get_context(), [np.nan])
+    simulator.AdvanceTo(0.25)
+    history = simulator.get_context().get_abstract_state(0).get_value().history
+    np.testing.assert_array_equal(history.readings, [[False]])
+    np.testing.assert_allclose(history.commanded, [start + [0.1, 0]])
