@@ -105,21 +105,10 @@ def _run(args: argparse.Namespace) -> int:
         **{key: key for key in same}, "outlier_gate": "outlier_log_evidence",
         "ball_radius": "ball_radius_rad",
         "process_noise": "process_noise_radius_rad"})
-    if not 0 <= settings.process_noise_radius_rad <= 0.5:
-        raise ValueError(f"--process-noise must be in [0, 0.5] rad, got "
-                         f"{settings.process_noise_radius_rad}")
-    if settings.tactile_error_rate is not None and not 0 <= settings.tactile_error_rate <= 1:
-        raise ValueError(f"--tactile-error-rate must be in [0, 1], got "
-                         f"{settings.tactile_error_rate}")
     spec = ArmSpec.load(settings.arm)  # a bad arm file fails before anything is built
     if spec.kind != "herb":
         raise ValueError(f"{spec.source}: the HERB episode needs a 'herb' arm, got "
                          f"{spec.kind!r}")
-    if not 1 <= settings.dual_particles < settings.particles:
-        raise ValueError(f"--dual-particles must be in [1, --particles), got "
-                         f"{settings.dual_particles} with {settings.particles} particles")
-    if not 0 <= settings.mixing_rate <= 1:
-        raise ValueError(f"--mixing-rate must be in [0, 1], got {settings.mixing_rate}")
     meshcat = local_meshcat()
     if args.meshcat:
         print(f"Meshcat is live at {meshcat.web_url()}", flush=True)

@@ -42,6 +42,7 @@ from models.contact import SimulationConfig
 from models.herb.scene import SceneSpec
 from models.herb.tactile import SensorGroups, TactileLayout, TactileNoise
 from models.pose import wrap_angle
+from models.settings import check_ranges
 
 ESTIMATORS = ("cpf", "mpf-ball")
 
@@ -104,6 +105,23 @@ class ConfigestEpisodeSettings:
     sim: SimulationConfig = field(default_factory=SimulationConfig)
 
     def __post_init__(self):
+        """Raise ValueError naming the field (and its ``configest run`` option) out of
+        range."""
+        if self.particles < 2 or not 1 <= self.dual_particles < self.particles:
+            raise ValueError(f"dual_particles (--dual-particles) must be in [1, particles), "
+                             f"got {self.dual_particles} with {self.particles} particles")
+        for name, option, low, high, unit in (
+                ("mixing_rate", "--mixing-rate", 0.0, 1.0, ""),
+                ("process_noise_radius_rad", "--process-noise", 0.0, 0.5, " rad"),
+                ("tactile_error_rate", "--tactile-error-rate", 0.0, 1.0, "")):
+            value = getattr(self, name)
+            if value is not None and not low <= value <= high:
+                raise ValueError(f"{name} ({option}) must be in [{low:g}, {high:g}]{unit}, "
+                                 f"got {value}")
+        check_ranges(self, positive=("seconds_per_step", "estimator_period_s",
+                                     "ball_radius_rad"),
+                     at_most={"ball_radius_rad": np.pi, "seconds_per_step": 10.0,
+                              "estimator_period_s": 10.0})
         check_proprioception(self.proprioception)
         check_dual_density(self.dual_density, self.metric, self.dual_share)
 

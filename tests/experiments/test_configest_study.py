@@ -57,15 +57,15 @@ def test_configest_run_refuses_bad_input_before_building(tmp_path, capsys):
     assert "needs a 'herb' arm" in capsys.readouterr().err
     assert main(["configest", "run", "--tactile-error-rate", "2", "--out",
                  str(tmp_path)]) == 2
-    assert "--tactile-error-rate must be in [0, 1]" in capsys.readouterr().err
+    assert "(--tactile-error-rate) must be in [0, 1]" in capsys.readouterr().err
     assert main(["configest", "run", "--particles", "5", "--out", str(tmp_path)]) == 2
-    assert "--dual-particles must be in [1, --particles)" in capsys.readouterr().err
+    assert "(--dual-particles) must be in [1, particles)" in capsys.readouterr().err
     assert main(["configest", "run", "--dual-particles", "0", "--out", str(tmp_path)]) == 2
     assert "got 0 with 100 particles" in capsys.readouterr().err
     assert main(["configest", "run", "--mixing-rate", "1.5", "--out", str(tmp_path)]) == 2
-    assert "--mixing-rate must be in [0, 1]" in capsys.readouterr().err
+    assert "(--mixing-rate) must be in [0, 1]" in capsys.readouterr().err
     assert main(["configest", "run", "--process-noise", "-0.01", "--out", str(tmp_path)]) == 2
-    assert "--process-noise must be in [0, 0.5] rad" in capsys.readouterr().err
+    assert "(--process-noise) must be in [0, 0.5] rad" in capsys.readouterr().err
     assert main(["configest", "run", "--outlier-gate", "3", "--out", str(tmp_path)]) == 2
     assert "--outlier-gate must be < 0" in capsys.readouterr().err
     with pytest.raises(SystemExit) as usage:

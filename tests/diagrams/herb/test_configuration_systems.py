@@ -2,9 +2,11 @@
 sec. 5.5 end to end."""
 
 import json
+import re
 from functools import lru_cache
 
 import numpy as np
+import pytest
 from pydrake.systems.analysis import Simulator
 
 from diagrams.herb.configest_episode import ConfigestEpisodeSettings, run_configest_episode
@@ -175,3 +177,17 @@ def test_estimator_history_records_the_readings_its_filter_weighed():
     history = simulator.get_context().get_abstract_state(0).get_value().history
     np.testing.assert_array_equal(history.readings, [[False]])
     np.testing.assert_allclose(history.commanded, [start + [0.1, 0]])
+
+
+def test_episode_settings_refuse_values_out_of_range():
+    """The episode's settings check themselves (not only the CLI), naming the field and
+    its option."""
+    for bad, message in (({"dual_particles": 100}, "dual_particles (--dual-particles)"),
+                         ({"mixing_rate": -0.1}, "mixing_rate (--mixing-rate)"),
+                         ({"process_noise_radius_rad": 0.6}, "(--process-noise)"),
+                         ({"tactile_error_rate": float("nan")}, "(--tactile-error-rate)"),
+                         ({"ball_radius_rad": 0.0}, "ball_radius_rad must be > 0"),
+                         ({"seconds_per_step": -1.0}, "seconds_per_step must be > 0")):
+        with pytest.raises(ValueError, match=re.escape(message)):
+            ConfigestEpisodeSettings(**bad)
+    assert ConfigestEpisodeSettings(tactile_error_rate=None).tactile_error_rate is None
