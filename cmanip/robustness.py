@@ -28,8 +28,9 @@ def measure_robustness(parts, *, limit_per_kind: int | None = None, fault_trials
                        smoother_updates: int = 10_000, cache_dir: Path | None = None,
                        seed: int = 0, progress: bool = True, backend=None) -> dict:
     """Measure ``parts`` and print a summary of each; the report (module docstring).
-    ``backend`` (an :class:`experiments.runner.Backend`; None: serial) runs the fault
-    part's jobs; the budgets and memory parts measure this process and stay in it."""
+    ``backend`` (an :class:`experiments.runner.Backend`; None: the fault bench's
+    default, serial) runs the fault part's jobs; the budgets and memory parts measure
+    this process and stay in it."""
     report: dict = {}
     if "malformed" in parts:
         from cmanip.malformed import measure
@@ -56,10 +57,9 @@ def measure_robustness(parts, *, limit_per_kind: int | None = None, fault_trials
 
 def _faults(trials: int, seed: int, progress: bool, backend) -> dict:
     from experiments.fault_bench import SHAM, measure_faults
-    from experiments.runner import Backend
 
     faults = measure_faults(trials=trials, seed=seed, progress=progress,
-                            backend=backend or Backend("serial"))
+                            **({} if backend is None else {"backend": backend}))
     outcomes = faults["fault_outcomes"]
     print(f"faults: {faults['faults_injected']} injected, {faults['faults_recovered']} "
           f"recovered by the robust filters ({faults['faults_recovered_plain']} by the "
