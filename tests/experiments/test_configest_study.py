@@ -109,6 +109,26 @@ def test_h1_is_judged_on_the_paired_difference_to_the_cpf():
     assert hypotheses({"wam": arm})["H4_ball_best_on_wam"]
 
 
+def test_h2_is_judged_on_the_mean_and_on_the_final_rmse_apart():
+    from experiments.configest_study import hypotheses
+
+    def entry(mean, final):  # (value, 95 % half-width) each
+        return {"rmse_rad_mean": mean[0], "rmse_rad_mean_ci95": mean[1],
+                "rmse_rad_final": final[0], "rmse_rad_final_ci95": final[1],
+                "vs_cpf_rad_mean": -0.3, "vs_cpf_rad_mean_ci95": 0.1}
+
+    # the 2-DOF figures of the default study: alike at the end, not over time
+    arm = {"cpf": entry((2.45, 0.1), (2.36, 0.13)),
+           "mpf-uniform": entry((2.11, 0.09), (0.10, 0.06)),
+           "mpf-particle": entry((1.91, 0.10), (0.16, 0.11)),
+           "mpf-ball": entry((2.10, 0.09), (0.12, 0.09)),
+           "mpf-explicit": entry((2.14, 0.09), (0.058, 0.003))}
+    h = hypotheses({"2dof": arm})
+    assert not h["H2_alike_at_2dof"] and h["H2_alike_at_2dof_final"]
+    arm["mpf-explicit"] = entry((2.14, 0.09), (0.34, 0.13))  # as with the history density
+    assert not hypotheses({"2dof": arm})["H2_alike_at_2dof_final"]
+
+
 def test_an_unknown_proprioception_is_a_clear_error(capsys):
     from diagrams.herb.configest_episode import ConfigestEpisodeSettings
 
