@@ -6,7 +6,7 @@ import pytest
 
 from cmanip.cli import main
 from cmanip.config import load_config
-from experiments.configest_study import ConfigestSettings
+from experiments.configest_study import ConfigestSettings, hypotheses
 
 
 def test_configest_study_writes_the_summary_the_issue_asks_for(tmp_path):
@@ -90,28 +90,54 @@ def test_the_beyond_thesis_variants_are_settings_and_bad_ones_clear_errors(tmp_p
     assert "--dual-share: invalid choice" in capsys.readouterr().err
 
 
+def _wam_entry(mean, ci, vs=None, vs_ci=None, paired=None):
+    """A filter's summary entry: mean RMSE (rad) and half-width, its paired difference to
+    the CPF, and ``paired`` {other: (diff, half-width)}."""
+    e = {"rmse_rad_mean": mean, "rmse_rad_mean_ci95": ci}
+    if vs is not None:
+        e.update(vs_cpf_rad_mean=vs, vs_cpf_rad_mean_ci95=vs_ci)
+    if paired is not None:
+        e["paired_rad_mean"] = {k: {"diff": d, "ci95": h} for k, (d, h) in paired.items()}
+    return e
+
+
 def test_h1_is_judged_on_the_paired_difference_to_the_cpf():
-    from experiments.configest_study import hypotheses
-
-    def entry(mean, ci, vs=None, vs_ci=None):
-        e = {"rmse_rad_mean": mean, "rmse_rad_mean_ci95": ci}
-        return e if vs is None else {**e, "vs_cpf_rad_mean": vs, "vs_cpf_rad_mean_ci95": vs_ci}
-
     # consistently 0.14 below the CPF on the same experiments, inside the unpaired spread
-    arm = {"cpf": entry(1.55, 0.12), "mpf-uniform": entry(3.7, 0.2, 2.1, 0.2),
-           "mpf-particle": entry(1.41, 0.16, -0.13, 0.22),
-           "mpf-ball": entry(1.40, 0.11, -0.14, 0.13)}
+    still = {"mpf-uniform": (0.0, 0.01), "mpf-particle": (0.0, 0.01), "mpf-ball": (0.0, 0.01)}
+    arm = {"cpf": _wam_entry(1.55, 0.12),
+           "mpf-uniform": _wam_entry(3.7, 0.2, 2.1, 0.2, still),
+           "mpf-particle": _wam_entry(1.41, 0.16, -0.13, 0.22, still),
+           "mpf-ball": _wam_entry(1.40, 0.11, -0.14, 0.13, still)}
     h = hypotheses({"wam": arm})
     assert h["H1_mpf_beats_cpf"] == {"wam": True}
     assert h["H1_mpf_beats_cpf_unpaired"] == {"wam": False}
-    arm["mpf-ball"] = entry(1.40, 0.11, -0.14, 0.15)
+    arm["mpf-ball"] = _wam_entry(1.40, 0.11, -0.14, 0.15, still)
     assert hypotheses({"wam": arm})["H1_mpf_beats_cpf"] == {"wam": False}
-    assert hypotheses({"wam": arm})["H4_ball_best_on_wam"]
+    assert hypotheses({"wam": arm})["H4_ball_best_on_wam_unpaired"]
+
+
+def test_h3_and_h4_are_judged_on_the_paired_differences_between_variants():
+    # the 3-DOF default study's shape: Ball 0.15 below Uniform on the same experiments,
+    # its own interval touching Uniform's; Particle 0.09 below Ball, consistently
+    def arm(particle_vs_ball):
+        return {"cpf": _wam_entry(1.35, 0.1),
+                "mpf-uniform": _wam_entry(1.44, 0.08, 0.09, 0.1, {
+                    "mpf-particle": (0.24, 0.08), "mpf-ball": (0.15, 0.07)}),
+                "mpf-particle": _wam_entry(1.20, 0.09, -0.15, 0.1, {
+                    "mpf-uniform": (-0.24, 0.08), "mpf-ball": particle_vs_ball}),
+                "mpf-ball": _wam_entry(1.29, 0.08, -0.06, 0.1, {
+                    "mpf-uniform": (-0.15, 0.07),
+                    "mpf-particle": (-particle_vs_ball[0], particle_vs_ball[1])})}
+
+    h = hypotheses({"3dof": arm((-0.09, 0.05)), "wam": arm((-0.09, 0.05))})
+    assert h["H3_particle_ball_beat_uniform"] == {"3dof": True, "wam": True}
+    assert h["H3_particle_ball_beat_uniform_unpaired"] == {"3dof": False, "wam": False}
+    assert not h["H4_ball_best_on_wam"]  # Particle is below Ball beyond the interval
+    assert hypotheses({"wam": arm((-0.09, 0.12))})["H4_ball_best_on_wam"]
+    assert hypotheses({"wam": arm((+0.09, 0.05))})["H4_ball_best_on_wam"]
 
 
 def test_h2_is_judged_on_the_mean_and_on_the_final_rmse_apart():
-    from experiments.configest_study import hypotheses
-
     def entry(mean, final):  # (value, 95 % half-width) each
         return {"rmse_rad_mean": mean[0], "rmse_rad_mean_ci95": mean[1],
                 "rmse_rad_final": final[0], "rmse_rad_final_ci95": final[1],
