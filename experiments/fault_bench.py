@@ -4,7 +4,8 @@ Every estimator of the project is run twice on the same simulated experiment wit
 random numbers: once clean, once with one fault injected into its inputs for a stretch of
 steps. The particle filters run so both as the thesis has them and robust, with an outlier
 gate (a reading with evidence log p(o | b+) below :data:`OUTLIER_GATE` that no dual
-explains either is propagated through, not weighed), each against its own clean run. A
+explains either is propagated through, not weighed) and, for the MPFs, the evidence split
+between the sets (:data:`ROBUST_DUAL_SHARE`), each against its own clean runs. A
 fault is *recovered* when the faulty run never produced a non-finite estimate and its
 error over the last quarter of the run is at most ``max(1.5 x clean, clean + tol,
 worst)``, ``clean`` the median and ``worst`` the largest of that error over
@@ -91,6 +92,15 @@ every particle with the arm's error rate 0.001, thirteen with the planar world's
 HAND_FILTERS = (FilterSpec("cpf", "cpf"), FilterSpec("mpf-am", "am"),
                 FilterSpec("mpf-rs", "rs"), FilterSpec("mpf-tr", "tr"))
 ARM_FILTERS = ("cpf", "mpf-ball")
+ROBUST_DUAL_SHARE = "evidence"
+"""The robust MPFs' split between their sets (Augmented MCL's idea, after Thrun, Burgard and
+Fox, Table 8.3: duals in proportion to the share of the reading the prior fails to
+explain; :class:`estimation.particles.filters.ManifoldParticleFilter`). After a stretch of
+unusable or contradicting readings the belief may have collapsed into a wrong mode; with
+the thesis' fixed split the duals are weighed by that collapsed belief's kernel density
+and stay beside it, while a reading the collapsed belief cannot explain gives the duals
+more of the posterior here. Measured on the hand's MPF-AM (3 pushes, 6 faults): 5 faults
+unrecovered with the fixed split, 2 with this one."""
 TOLERANCE = {"hand": 0.01, "arm": 0.1, "smoother": 0.005}
 """tol of the recovery rule per family (m, rad, m)."""
 
@@ -297,8 +307,8 @@ def hand_filter_faults(trial: int, spec: FilterSpec, f: int, *, seed: int = 0
     def make(robust, draw):
         rng = np.random.default_rng([seed, trial, 1, f] + [draw] * (draw > 0))
         filt = build_hand_filter(world, settings, spec, truth.mean, truth.std, truth.action,
-                                 seed, rng,
-                                 outlier_log_evidence=OUTLIER_GATE if robust else None)
+                                 seed, rng, outlier_log_evidence=OUTLIER_GATE if robust else None,
+                                 dual_share=ROBUST_DUAL_SHARE if robust else "fixed")
         belief = ParticleBelief.uniform(world.sample_gaussian(
             truth.mean, truth.std, settings.particles, rng=rng))
         return filt, belief, rng
@@ -338,8 +348,9 @@ def arm_filter_faults(trial: int, kind: str, f: int, *, seed: int = 0) -> list[F
 
     def make(robust, draw):
         rng = np.random.default_rng([seed, 31, trial, 1 + f] + [draw] * (draw > 0))
-        filt, n, _ = build_filter(world, kind, settings,
-                                  outlier_log_evidence=OUTLIER_GATE if robust else None)
+        filt, n, _ = build_filter(
+            world, kind, replace(settings, dual_share=ROBUST_DUAL_SHARE) if robust else settings,
+            outlier_log_evidence=OUTLIER_GATE if robust else None)
         belief = ParticleBelief.uniform(world.initial_belief_states(
             trajectory.encoders[0], n, rng=rng), world.angular)
         return filt, belief, rng

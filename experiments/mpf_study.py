@@ -214,10 +214,12 @@ def run_trial(settings: TrialSettings, filters: tuple[FilterSpec, ...], study_se
 
 def build_filter(world, settings: TrialSettings, spec: FilterSpec, mean, std, action,
                  study_seed: int, rng: np.random.Generator, *,
-                 outlier_log_evidence: float | None = None):
+                 outlier_log_evidence: float | None = None, dual_share: str = "fixed"):
     """The filter of ``spec`` for a trial: the CPF, or the MPF with the AM, RS (the
     study's shared set) or TR (this trial's rollouts from the belief) manifold; with
-    ``outlier_log_evidence``, its outlier gate (the study's filters have none)."""
+    ``outlier_log_evidence``, its outlier gate, and ``dual_share``, the MPF's split between
+    its sets (:class:`estimation.particles.filters.ManifoldParticleFilter`; the study's
+    filters are the thesis', with no gate and the fixed split)."""
     if spec.kind == "cpf":
         return make_filter("cpf", world, outlier_log_evidence=outlier_log_evidence)
     if spec.kind == "am":
@@ -233,7 +235,8 @@ def build_filter(world, settings: TrialSettings, spec: FilterSpec, mean, std, ac
         raise ValueError(f"unknown filter kind {spec.kind!r}")
     phi = settings.mixing_rate if spec.mixing_rate is None else spec.mixing_rate
     return make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
-                       mixing_rate=phi, outlier_log_evidence=outlier_log_evidence)
+                       mixing_rate=phi, dual_share=dual_share,
+                       outlier_log_evidence=outlier_log_evidence)
 
 
 def condition_trial(condition: Condition, seed: int, trial: int) -> TrialResult:

@@ -29,8 +29,8 @@ def make_filter(kind: str, world: FilterModel, manifold: ContactManifold | None 
             required for ``mpf``, ignored for ``cpf``.
         dual_particles: the MPF's nd (thesis sec. 4.3.2: 25).
         mixing_rate: the MPF's phi in [0, 1] (sec. 4.3.2: 0.1).
-        dual_share: the MPF's split between its sets, ``fixed`` (Alg. 4.2) or ``density``
-            (:class:`ManifoldParticleFilter`).
+        dual_share: the MPF's split between its sets, ``fixed`` (Alg. 4.2), ``density`` or
+            ``evidence`` (:class:`ManifoldParticleFilter`).
         resample_size: the CPF's particle count after resampling (default: unchanged).
         outlier_log_evidence: either filter's outlier gate (None: the thesis; see
             :class:`ConventionalParticleFilter`).
