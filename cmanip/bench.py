@@ -61,6 +61,9 @@ def register(commands) -> None:
                         help="budgets: where Lat-DESPOT's lattice IK table is kept")
     robust.add_argument("--seed", type=int, default=0, help="seeds every part")
     robust.add_argument("--no-progress", action="store_true", help="no progress bar")
+    robust.add_argument("--fault-figure", type=Path, default=None,
+                        help="faults: also draw each run's error against the recovery "
+                             "bound to this PNG")
     _json(robust)
     robust.set_defaults(handler=_robustness)
 
@@ -147,11 +150,16 @@ def _robustness(args: argparse.Namespace) -> int:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 1, got {value}")
     if not args.budget_s > 0:
         raise ValueError(f"--budget-s must be > 0, got {args.budget_s}")
+    if args.fault_figure is not None and "faults" not in args.parts:
+        raise ValueError("--fault-figure draws the faults part; add faults to --parts")
+    if args.fault_figure is not None and args.fault_figure.suffix.lower() != ".png":
+        raise ValueError(f"--fault-figure {args.fault_figure}: must end in .png")
     report = measure_robustness(
         args.parts, limit_per_kind=args.limit_per_kind, fault_trials=args.fault_trials,
         decisions=args.decisions, budget_s=args.budget_s,
         smoother_updates=args.smoother_updates, cache_dir=args.cache_dir, seed=args.seed,
-        progress=not args.no_progress, backend=backend_of(args))
+        progress=not args.no_progress, backend=backend_of(args),
+        fault_figure=args.fault_figure)
     write_json(report, args.json)
     return 0
 

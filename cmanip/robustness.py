@@ -5,7 +5,8 @@ Parts: ``malformed`` (:mod:`cmanip.malformed`), ``faults``
 (:mod:`experiments.load_bench`). The report holds each part's details and, at its top,
 ``malformed_tried``, ``malformed_clear_error``, ``malformed_ignored``, ``faults_injected``,
 ``faults_recovered``
-(the robust filters, with the outlier gate; ``faults_recovered_plain``: the filters as
+(the robust filters, with the outlier gate and, for the MPFs, the evidence split;
+``faults_recovered_plain``: the filters as
 the thesis has them; ``sham_recovered`` of ``sham_runs``: the recovery rule's pass rate
 without a fault, its baseline),
 ``budget_overrun_ms_p99`` (the worse planner's p99 overrun under load) and
@@ -26,11 +27,13 @@ MESHCAT_SESSIONS = 20
 def measure_robustness(parts, *, limit_per_kind: int | None = None, fault_trials: int = 3,
                        decisions: int = 200, budget_s: float = 0.1,
                        smoother_updates: int = 10_000, cache_dir: Path | None = None,
-                       seed: int = 0, progress: bool = True, backend=None) -> dict:
+                       seed: int = 0, progress: bool = True, backend=None,
+                       fault_figure: Path | None = None) -> dict:
     """Measure ``parts`` and print a summary of each; the report (module docstring).
     ``backend`` (an :class:`experiments.runner.Backend`; None: the fault bench's
     default, serial) runs the fault part's jobs; the budgets and memory parts measure
-    this process and stay in it."""
+    this process and stay in it. ``fault_figure``: where to draw the fault part's
+    outcomes (PNG, :func:`experiments.fault_plots.plot_fault_recovery`)."""
     report: dict = {}
     if "malformed" in parts:
         from cmanip.malformed import measure
@@ -48,6 +51,12 @@ def measure_robustness(parts, *, limit_per_kind: int | None = None, fault_trials
                   f"{entry['accepted']:4d} loaded, {entry['other']:3d} other")
     if "faults" in parts:
         report.update(_faults(fault_trials, seed, progress, backend))
+        if fault_figure is not None:
+            from experiments.fault_plots import plot_fault_recovery
+
+            fault_figure.parent.mkdir(parents=True, exist_ok=True)
+            plot_fault_recovery(report["fault_outcomes"], fault_figure)
+            print(f"wrote {fault_figure}")
     if "budgets" in parts:
         report.update(_budgets(decisions, budget_s, cache_dir, seed, progress))
     if "memory" in parts:
@@ -76,7 +85,7 @@ def _faults(trials: int, seed: int, progress: bool, backend) -> dict:
         done, total = by.get(key, (0, 0))
         by[key] = (done + o["recovered"], total + 1)
     for (estimator, robust), (done, total) in by.items():
-        variant = "" if estimator == "smoother" else "gated" if robust else "thesis"
+        variant = "" if estimator == "smoother" else "robust" if robust else "thesis"
         print(f"  {estimator:16s} {variant:6s}: {done}/{total} recovered")
     return faults
 

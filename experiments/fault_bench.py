@@ -112,7 +112,8 @@ class FaultOutcome:
     Attributes:
         estimator: e.g. ``hand/mpf-am``, ``arm/cpf``, ``smoother``.
         fault: its name; trial: the experiment it was injected into.
-        robust: the filter had the outlier gate :data:`OUTLIER_GATE`.
+        robust: the robust variant: the outlier gate :data:`OUTLIER_GATE` and, for an
+            MPF, the split :data:`ROBUST_DUAL_SHARE`.
         finite: every estimate of the faulty run was finite.
         reported: the estimator reported rejecting the input at every step of the fault
             (None for faults without a non-finite input to reject).
@@ -144,10 +145,16 @@ class FaultOutcome:
     recovered_first_draw: bool
 
 
+def recovery_bound(clean: float, tol: float, worst: float = 0.0) -> float:
+    """The largest last-quarter error the recovery rule passes (m or rad):
+    ``max(RECOVERY_FACTOR x clean, clean + tol, worst)`` for the clean draws' median
+    ``clean`` and largest ``worst``."""
+    return max(RECOVERY_FACTOR * clean, clean + tol, worst)
+
+
 def _recovered(finite: bool, after: float, clean: float, tol: float,
                worst: float = 0.0) -> bool:
-    return bool(finite and np.isfinite(after)
-                and after <= max(RECOVERY_FACTOR * clean, clean + tol, worst))
+    return bool(finite and np.isfinite(after) and after <= recovery_bound(clean, tol, worst))
 
 
 def joint_motion(motions: np.ndarray) -> np.ndarray:
@@ -240,7 +247,8 @@ def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray
                      start: int, error, trial: int, tol: float,
                      carry=joint_motion) -> list[FaultOutcome]:
     """Every fault of :data:`FILTER_FAULTS` from update ``start``, and the sham, for the
-    filter ``make`` builds, as the thesis has it and robust (with the outlier gate), each
+    filter ``make`` builds, as the thesis has it and robust (:data:`ROBUST_DUAL_SHARE` and
+    the outlier gate), each
     against its own clean runs.
 
     Args:

@@ -78,3 +78,7 @@ def test_bad_robustness_options_are_clear_errors(capsys):
     assert "--fault-trials must be >= 1" in capsys.readouterr().err
     assert main(["bench", "robustness", "--parts", "budgets", "--budget-s", "0"]) == 2
     assert "--budget-s must be > 0" in capsys.readouterr().err
+    assert main(["bench", "robustness", "--parts", "budgets", "--fault-figure", "f.png"]) == 2
+    assert "add faults to --parts" in capsys.readouterr().err
+    assert main(["bench", "robustness", "--parts", "faults", "--fault-figure", "f.svg"]) == 2
+    assert "must end in .png" in capsys.readouterr().err

@@ -138,3 +138,20 @@ def test_meshcat_sessions_count_their_clients_and_leave_nothing_open():
     assert report["clients_connected"] == 3  # the handshake is a connection Drake counts
     assert report["connections_left_open"] == 0
     assert report["after"] == report["before"]  # threads, descriptors, listening sockets
+
+
+def test_the_fault_figure_puts_exactly_the_unrecovered_runs_past_the_bound(tmp_path):
+    from dataclasses import asdict
+
+    from experiments.fault_plots import bound_ratio, plot_fault_recovery
+
+    outcomes = [asdict(o) for o in hand_faults(1, filters=(FilterSpec("cpf", "cpf"),),
+                                               progress=False)]
+    outcomes.append(dict(outcomes[0], fault="stuck-on", error_after=1.0, recovered=False))
+    outcomes.append(dict(outcomes[0], fault="nan-action", finite=False, recovered=False))
+    assert all((bound_ratio(o) <= 1) == o["recovered"] for o in outcomes)
+    assert bound_ratio(outcomes[-1]) == float("inf")
+    assert plot_fault_recovery(outcomes, tmp_path / "faults.png") == "faults.png"
+    assert (tmp_path / "faults.png").stat().st_size > 10_000
+    with pytest.raises(ValueError, match="no fault outcomes"):
+        plot_fault_recovery([], tmp_path / "empty.png")

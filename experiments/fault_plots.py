@@ -1,0 +1,69 @@
+"""The fault bench's figure: how far each faulty run ends from the recovery rule's bound.
+
+One row per estimator and variant (the thesis' filter, the robust one), one point per
+injected fault at ``error_after / recovery_bound`` on a log axis, coloured by fault; a
+point right of the line at 1 was not recovered. The shams (no fault) are drawn in grey:
+where they fall is the spread the rule allows a run that no fault touched. A run with a
+non-finite estimate is drawn as a cross at the axis' right edge.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from experiments.fault_bench import SHAM, TOLERANCE, recovery_bound
+from experiments.plotting import plt, save_figure
+
+
+def bound_ratio(outcome: dict) -> float:
+    """``error_after`` over the rule's bound for ``outcome`` (a ``fault_outcomes`` entry
+    of the report): at most 1 when the rule passes it; inf for a non-finite run."""
+    if not outcome["finite"] or not np.isfinite(outcome["error_after"]):
+        return float("inf")
+    family = outcome["estimator"].split("/", 1)[0]
+    bound = recovery_bound(outcome["clean_after"], TOLERANCE[family],
+                           outcome["clean_after_worst"])
+    return outcome["error_after"] / bound
+
+
+def plot_fault_recovery(outcomes: list[dict], path: Path) -> str:
+    """Draw ``outcomes`` (the report's ``fault_outcomes``) to ``path`` (PNG); its name."""
+    if not outcomes:
+        raise ValueError("no fault outcomes to plot")
+    rows = sorted({(o["estimator"], o["robust"]) for o in outcomes},
+                  key=lambda r: (r[0], r[1]))
+    faults = sorted({o["fault"] for o in outcomes if o["fault"] != SHAM})
+    palette = plt.get_cmap("tab20").colors
+    colours = {f: palette[i % len(palette)] for i, f in enumerate(faults)}
+    ratios = np.array([bound_ratio(o) for o in outcomes])
+    finite = ratios[np.isfinite(ratios)]
+    right = max(2.0, float(finite.max()) * 1.3 if finite.size else 2.0)
+    left = min(0.05, float(finite.min()) / 1.3) if finite.size else 0.05
+    fig, ax = plt.subplots(figsize=(8, 0.45 * len(rows) + 1.6))
+    jitter = np.random.default_rng(0).uniform(-0.25, 0.25, len(outcomes))
+    for o, ratio, dy in zip(outcomes, ratios, jitter, strict=True):
+        y = rows.index((o["estimator"], o["robust"])) + dy
+        sham = o["fault"] == SHAM
+        colour = "0.6" if sham else colours[o["fault"]]
+        if np.isfinite(ratio):
+            ax.scatter(ratio, y, s=22, color=colour, marker="s" if sham else "o",
+                       edgecolors="k" if ratio > 1 else "none", linewidths=0.6, zorder=3)
+        else:
+            ax.scatter(right, y, s=40, color=colour, marker="x", zorder=3)
+    ax.axvline(1.0, color="k", lw=1, ls="--")
+    ax.set_xscale("log")
+    ax.set_xlim(left, right * 1.05)
+    ax.set_yticks(range(len(rows)))
+    ax.set_yticklabels([e if e == "smoother" else f"{e} ({'robust' if r else 'thesis'})"
+                        for e, r in rows])
+    ax.invert_yaxis()
+    ax.set_xlabel("error over the last quarter / recovery bound (right of 1: not recovered)")
+    handles = [plt.Line2D([], [], marker="o", ls="", color=colours[f], label=f)
+               for f in faults]
+    handles.append(plt.Line2D([], [], marker="s", ls="", color="0.6", label="sham (no fault)"))
+    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1))
+    ax.set_title("Faults injected into the estimators: where each run ends")
+    ax.grid(axis="x", alpha=0.3)
+    return save_figure(fig, Path(path))
