@@ -32,8 +32,7 @@ def plot_fault_recovery(outcomes: list[dict], path: Path) -> str:
     """Draw ``outcomes`` (the report's ``fault_outcomes``) to ``path`` (PNG); its name."""
     if not outcomes:
         raise ValueError("no fault outcomes to plot")
-    rows = sorted({(o["estimator"], o["robust"]) for o in outcomes},
-                  key=lambda r: (r[0], r[1]))
+    rows = sorted({(o["estimator"], o["robust"]) for o in outcomes})
     faults = sorted({o["fault"] for o in outcomes if o["fault"] != SHAM})
     palette = plt.get_cmap("tab20").colors
     colours = {f: palette[i % len(palette)] for i, f in enumerate(faults)}
