@@ -77,6 +77,11 @@ def _faults(trials: int, seed: int, progress: bool, backend) -> dict:
           f"{faults['faults_reported']} of {faults['faults_non_finite_input']} non-finite "
           f"inputs reported; the sham (no fault) passes the rule in "
           f"{faults['sham_recovered']} of {faults['sham_runs']} runs")
+    for variant, rates in faults["unrecovered_rates"].items():
+        print(f"  {variant} filters fail the rule: " + ", ".join(
+            f"{kind} {r['failed']}/{r['runs']} ({100 * r['rate']:.0f} % "
+            f"[{100 * r['ci95'][0]:.0f}, {100 * r['ci95'][1]:.0f}])"
+            for kind, r in rates.items()))
     by = {}
     for o in outcomes:
         if o["fault"] == SHAM:

@@ -67,6 +67,7 @@ from experiments.configest_study import ConfigestSettings, arm_world, build_filt
 from experiments.mpf_study import FilterSpec, TrialSettings, simulate_truth
 from experiments.mpf_study import build_filter as build_hand_filter
 from experiments.runner import Backend, Job, map_trials
+from experiments.statistics import wilson_interval
 from models.objects import ObjectSpec
 from models.planar.world import PlanarWorld
 from models.se2 import compose
@@ -452,6 +453,32 @@ def fault_job(family: str, trial: int, index: int, seed: int) -> list[FaultOutco
     raise ValueError(f"unknown fault family {family!r}")
 
 
+def unrecovered_rates(outcomes: list[FaultOutcome]) -> dict:
+    """The share of filter runs the recovery rule fails, faulty against sham, per variant.
+
+    A sham is one more clean draw, so its failure rate is the rule's false-alarm rate; a
+    fault does lasting harm in the measured sense only where its runs fail clearly more
+    often than the shams do. Returns ``{"thesis"|"robust": {"faults"|"shams":
+    {"failed", "runs", "rate", "ci95": [lo, hi]}}}`` (Wilson 95 %) over the particle
+    filters' runs (the smoother has no sham); a variant or kind without runs is left out.
+    """
+    out = {}
+    for robust, variant in ((False, "thesis"), (True, "robust")):
+        runs = [o for o in outcomes if o.robust == robust and o.estimator != "smoother"]
+        kinds = {"faults": [o for o in runs if o.fault != SHAM],
+                 "shams": [o for o in runs if o.fault == SHAM]}
+        entry = {}
+        for kind, chosen in kinds.items():
+            if chosen:
+                failed = sum(not o.recovered for o in chosen)
+                entry[kind] = {"failed": failed, "runs": len(chosen),
+                               "rate": failed / len(chosen),
+                               "ci95": list(wilson_interval(failed, len(chosen)))}
+        if entry:
+            out[variant] = entry
+    return out
+
+
 def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True,
                    backend: Backend = Backend("serial")) -> dict:
     """Every estimator under every fault: ``faults_injected`` (each fault once),
@@ -459,7 +486,8 @@ def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True,
     ``faults_recovered_plain`` (the filters as the thesis has them),
     ``faults_recovered_first_draw`` (the robust filters against one clean draw),
     ``sham_runs`` and ``sham_recovered`` (the control, both filter variants: the rule's
-    pass rate without a fault), ``faults_non_finite``
+    pass rate without a fault), ``unrecovered_rates`` (:func:`unrecovered_rates`: the
+    faults' failure rate beside the shams'), ``faults_non_finite``
     (runs with a NaN or infinite estimate, either way), ``faults_reported`` of
     ``faults_non_finite_input`` (the faults feeding NaN or infinite inputs, which the
     estimator must report rejecting) and each outcome. One job per (family, experiment,
@@ -489,5 +517,6 @@ def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True,
         "faults_non_finite": sum(not o.finite for o in outcomes),
         "faults_non_finite_input": len(detectable),
         "faults_reported": sum(bool(o.reported) for o in detectable),
+        "unrecovered_rates": unrecovered_rates(outcomes),
         "fault_outcomes": [asdict(o) for o in outcomes],
     }

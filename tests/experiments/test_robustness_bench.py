@@ -18,6 +18,7 @@ from experiments.fault_bench import (
     inject,
     inject_smoother,
     joint_motion,
+    unrecovered_rates,
 )
 from experiments.load_bench import (
     BusyCore,
@@ -94,6 +95,27 @@ def test_the_fault_bench_runs_one_job_per_filter_and_experiment(monkeypatch):
     assert report["faults_injected"] == len(seen) == report["faults_recovered"]
     with pytest.raises(ValueError, match="unknown fault family"):
         fault_job("gremlins", 0, 0, 0)
+
+
+def test_unrecovered_rates_set_the_faults_failures_beside_the_shams():
+    def outcome(estimator, fault, robust, recovered):
+        return FaultOutcome(estimator, fault, 0, robust, True, None, False, 0.0, 0.0, 0.0,
+                            0.0, 0.0, recovered, recovered)
+
+    outcomes = ([outcome("hand/cpf", "stuck-on", True, i < 3) for i in range(4)]
+                + [outcome("hand/cpf", SHAM, True, True), outcome("hand/cpf", SHAM, True, False)]
+                + [outcome("hand/cpf", "stuck-on", False, True)]
+                + [outcome("smoother", "blind", False, False)])
+    rates = unrecovered_rates(outcomes)
+    robust = rates["robust"]
+    assert (robust["faults"]["failed"], robust["faults"]["runs"]) == (1, 4)
+    assert robust["faults"]["rate"] == pytest.approx(0.25)
+    assert robust["shams"]["rate"] == pytest.approx(0.5)
+    lo, hi = robust["faults"]["ci95"]
+    assert 0.0 < lo < 0.25 < hi < 1.0
+    # the smoother has no sham and is left out; a variant without shams has faults only
+    assert rates["thesis"] == {"faults": {"failed": 0, "runs": 1, "rate": 0.0,
+                                          "ci95": [0.0, pytest.approx(0.7935, abs=1e-3)]}}
 
 
 def test_a_cpf_under_every_fault_stays_finite_and_reports_what_it_can():
