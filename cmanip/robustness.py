@@ -72,8 +72,7 @@ def _faults(trials: int, seed: int, progress: bool, backend) -> dict:
     outcomes = faults["fault_outcomes"]
     print(f"faults: {faults['faults_injected']} injected, {faults['faults_recovered']} "
           f"recovered by the robust filters ({faults['faults_recovered_plain']} by the "
-          f"thesis' filters; {faults['faults_recovered_first_draw']} against one clean "
-          f"draw alone), {faults['faults_non_finite']} with a non-finite estimate; "
+          f"thesis' filters), {faults['faults_non_finite']} with a non-finite estimate; "
           f"{faults['faults_reported']} of {faults['faults_non_finite_input']} non-finite "
           f"inputs reported; the sham (no fault) passes the rule in "
           f"{faults['sham_recovered']} of {faults['sham_runs']} runs")
@@ -82,6 +81,16 @@ def _faults(trials: int, seed: int, progress: bool, backend) -> dict:
             f"{kind} {r['failed']}/{r['runs']} ({100 * r['rate']:.0f} % "
             f"[{100 * r['ci95'][0]:.0f}, {100 * r['ci95'][1]:.0f}])"
             for kind, r in rates.items()))
+    harm = faults["lasting_harm"]
+    for variant, shams in harm["shams"].items():
+        sham = shams["all"]
+        print(f"  {variant} filters, rank of a run's last-quarter error among its "
+              f"{harm['draws']} clean draws (0.5: a clean draw; shams {sham['mean_rank']:.2f} "
+              f"+- {sham['ci95']:.2f}, p {sham['p_one_sided']:.2f}):")
+        for grouping in ("by_estimator", "by_fault"):
+            print("    " + ", ".join(
+                f"{group} {c['mean_rank']:.2f}{' HARMED' if c['harmed'] else ''}"
+                for group, c in harm[grouping].get(variant, {}).items()))
     by = {}
     for o in outcomes:
         if o["fault"] == SHAM:

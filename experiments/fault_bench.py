@@ -1,20 +1,21 @@
 """Estimators under faults (part of ``cmanip bench robustness``).
 
-Every estimator of the project is run twice on the same simulated experiment with the same
-random numbers: once clean, once with one fault injected into its inputs for a stretch of
-steps. The particle filters run so both as the thesis has them and robust, with an outlier
-gate (a reading with evidence log p(o | b+) below :data:`OUTLIER_GATE` that no dual
-explains either is propagated through, not weighed) and, for the MPFs, the evidence split
-between the sets (:data:`ROBUST_DUAL_SHARE`), each against its own clean runs. A
+Every estimator of the project is run on the same simulated experiment clean and with one
+fault injected into its inputs for a stretch of steps, each run of a particle filter with
+random numbers of its own. The particle filters run so both as the thesis has them and
+robust, with an outlier gate (a reading with evidence log p(o | b+) below
+:data:`OUTLIER_GATE` that no dual explains either is propagated through, not weighed) and,
+for the MPFs, the evidence split between the sets (:data:`ROBUST_DUAL_SHARE`), each against
+its own clean runs. A
 fault is *recovered* when the faulty run never produced a non-finite estimate and its
 error over the last quarter of the run is at most ``max(1.5 x clean, clean + tol,
 worst)``, ``clean`` the median and ``worst`` the largest of that error over
 :data:`CLEAN_DRAWS` clean runs of the filter with different random numbers: the estimator
 came back to where the clean runs are, give or take what a different draw of the same
 filter gives (measured: on the MPF study's first push, MPF-AM's last-quarter error over
-eight clean draws spans 0.3 to 3.8 cm). The rule against the one clean run with the faulty
-run's own random numbers (``*_first_draw``) is reported too; a particle filter's error
-after the stretch is then mostly the luck of one draw against another.
+eight clean draws spans 0.3 to 3.8 cm). The faulty runs do not share the clean draws'
+random numbers (nor each other's), so that a run no fault harmed is one more clean draw,
+exchangeable with them: the pooled test :func:`lasting_harm` rests on that.
 
 The rule has a false-alarm rate of its own: a faulty run is, after its stretch, one more
 draw of the filter, and a draw with no lasting harm still ends above the largest of
@@ -67,7 +68,7 @@ from experiments.configest_study import ConfigestSettings, arm_world, build_filt
 from experiments.mpf_study import FilterSpec, TrialSettings, simulate_truth
 from experiments.mpf_study import build_filter as build_hand_filter
 from experiments.runner import Backend, Job, map_trials
-from experiments.statistics import wilson_interval
+from experiments.statistics import half_width, holm, wilson_interval
 from models.objects import ObjectSpec
 from models.planar.world import PlanarWorld
 from models.se2 import compose
@@ -125,9 +126,12 @@ class FaultOutcome:
             the last quarter of the run (m or rad).
         clean_after, clean_after_worst: the median and the largest over the clean draws
             of the last-quarter error (m or rad).
-        clean_after_first_draw: the clean run with the faulty run's random numbers.
         recovered: finite and error_after within the recovery rule.
-        recovered_first_draw: the same against ``clean_after_first_draw`` alone.
+        clean_rank: the share of the clean draws whose last-quarter error this run's
+            exceeds (ties count half; 1 for a non-finite run): uniform on
+            ``{0, 1/D, ..., 1}`` (D = :data:`CLEAN_DRAWS`, mean 0.5) when the run is one
+            more clean draw, so its mean over many runs is the test of
+            :func:`lasting_harm`. None for the smoother, which draws nothing.
     """
 
     estimator: str
@@ -141,9 +145,8 @@ class FaultOutcome:
     error_after: float
     clean_after: float
     clean_after_worst: float
-    clean_after_first_draw: float
     recovered: bool
-    recovered_first_draw: bool
+    clean_rank: float | None
 
 
 def recovery_bound(clean: float, tol: float, worst: float = 0.0) -> float:
@@ -229,7 +232,7 @@ def _last_quarter(errors: np.ndarray) -> float:
 
 def _outcome(estimator, fault, trial, cleans: list[np.ndarray], faulty, window, flags, tol,
              robust: bool = False) -> FaultOutcome:
-    """``cleans``: the clean runs' errors, the first with the faulty run's random numbers."""
+    """``cleans``: the clean runs' errors (T,) each."""
     finite = bool(np.all(np.isfinite(faulty)))
     steps = range(window.start, window.stop)
     reported = all(flags[t][0] == REJECTED[fault] for t in steps) if fault in REJECTED \
@@ -237,11 +240,20 @@ def _outcome(estimator, fault, trial, cleans: list[np.ndarray], faulty, window, 
     surprised = any(flags[t][1] for t in steps) if flags else None
     after = _last_quarter(faulty)
     clean_afters = [_last_quarter(c) for c in cleans]
-    median, worst, first = float(np.median(clean_afters)), max(clean_afters), clean_afters[0]
+    median, worst = float(np.median(clean_afters)), max(clean_afters)
+    rank = clean_rank(after if finite else np.inf, clean_afters) if len(cleans) > 1 else None
     return FaultOutcome(estimator, fault, trial, robust, finite, reported, surprised,
-                        float(np.mean(faulty[window])), after, median, worst, first,
-                        _recovered(finite, after, median, tol, worst),
-                        _recovered(finite, after, first, tol))
+                        float(np.mean(faulty[window])), after, median, worst,
+                        _recovered(finite, after, median, tol, worst), rank)
+
+
+def clean_rank(after: float, clean_afters: list[float]) -> float:
+    """The share of ``clean_afters`` that ``after`` exceeds, ties counting half (a NaN or
+    infinite ``after`` exceeds them all)."""
+    clean = np.asarray(clean_afters, dtype=float)
+    if not np.isfinite(after):
+        return 1.0
+    return float((np.sum(after > clean) + 0.5 * np.sum(after == clean)) / len(clean))
 
 
 def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray,
@@ -254,7 +266,9 @@ def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray
 
     Args:
         make: ``(robust: bool, draw: int) -> (filter, belief, rng)``, the same seed every
-            call with the same draw (draw 0: the faulty runs' random numbers).
+            call with the same draw: draws ``0 .. CLEAN_DRAWS - 1`` are the clean runs,
+            ``CLEAN_DRAWS`` the sham's and ``CLEAN_DRAWS + 1 + k`` the run with the
+            ``k``-th fault.
         actions: (T, a). readings: (T, S) bool. error: ``(belief, t) -> float``.
         carry: how motions add up (:func:`inject`).
     """
@@ -269,8 +283,8 @@ def _filter_outcomes(label: str, make, actions: np.ndarray, readings: np.ndarray
         sham_errors, sham_flags = runs[CLEAN_DRAWS]
         outcomes.append(_outcome(label, SHAM, trial, cleans, sham_errors, sham_window,
                                  sham_flags, tol, robust))
-        for fault in FILTER_FAULTS:
-            filt, belief, rng = make(robust, 0)
+        for k, fault in enumerate(FILTER_FAULTS):
+            filt, belief, rng = make(robust, CLEAN_DRAWS + 1 + k)
             a, r, window = inject(actions, readings, fault, start, carry)
             errors, flags = _filter_run(filt, belief, a, r, error, rng)
             outcomes.append(_outcome(label, fault, trial, cleans, errors, window, flags, tol,
@@ -479,15 +493,94 @@ def unrecovered_rates(outcomes: list[FaultOutcome]) -> dict:
     return out
 
 
+def mann_whitney_null(m: int, n: int) -> np.ndarray:
+    """(m n + 1,) the probability of each Mann-Whitney count U (pairs in which one of ``m``
+    runs exceeds one of ``n`` others) when all ``m + n`` are exchangeable, by the
+    recursion over the largest of them."""
+    counts = {(0, j): np.ones(1) for j in range(n + 1)}
+    for i in range(1, m + 1):
+        counts[(i, 0)] = np.ones(1)
+        for j in range(1, n + 1):
+            total = np.zeros(i * j + 1)
+            total[j:] += counts[(i - 1, j)]  # the largest is one of the m: it beats all n
+            total[:len(counts[(i, j - 1)])] += counts[(i, j - 1)]
+            counts[(i, j)] = total
+    return counts[(m, n)] / counts[(m, n)].sum()
+
+
+def rank_sum_p_value(ranks_by_experiment: list[np.ndarray], draws: int) -> float:
+    """One-sided p-value of the summed :func:`clean_rank` of the runs being as large as
+    observed when every run is one more clean draw: the stratified Mann-Whitney test, exact.
+
+    Args:
+        ranks_by_experiment: per experiment and filter, the ranks of its runs, each against
+            the same ``draws`` clean draws; exchangeable within it (so correlated through
+            those draws), independent across.
+    Returns:
+        P(sum of counts >= observed) under that null (the distribution of the sum by
+        convolution; on the half-count grid that ties need).
+    """
+    total, observed = np.ones(1), 0
+    for ranks in ranks_by_experiment:
+        null = np.zeros(2 * len(ranks) * draws + 1)
+        null[::2] = mann_whitney_null(len(ranks), draws)
+        total = np.convolve(total, null)
+        observed += int(np.rint(2 * draws * np.sum(ranks)))
+    return float(np.clip(total[observed:].sum(), 0.0, 1.0))
+
+
+def lasting_harm(outcomes: list[FaultOutcome], draws: int = CLEAN_DRAWS) -> dict:
+    """Whether faults leave the particle filters worse than a clean draw, over many runs.
+
+    The recovery rule judges one run against :data:`CLEAN_DRAWS` others and fails about
+    one clean draw in six. Pooled, the runs' :attr:`FaultOutcome.clean_rank` is a
+    sharper test: with no lasting harm a faulty run is one more clean draw, its rank
+    uniform on ``{0, 1/D, ..., 1}`` and the mean rank 0.5, while a fault that leaves the
+    filter in a wrong mode pushes its runs above the clean draws. Each run is ranked only
+    against the clean draws of its own experiment and filter, so the test is the
+    stratified Mann-Whitney test (van Elteren's design; :func:`rank_sum_p_value`). Per
+    variant (``thesis``, ``robust``), grouped ``by_estimator`` and ``by_fault`` (each
+    fault over every filter), and the ``shams`` (the test's calibration: they are clean
+    draws), each group ``{"runs", "mean_rank", "ci95" (half-width, normal), "p_one_sided",
+    "harmed"}``; ``harmed`` is Holm's test at 5 % over every group of the grouping (both
+    variants), so a grouping's false alarms stay below 5 % in all."""
+    runs = [o for o in outcomes if o.clean_rank is not None]
+    groupings = {
+        "by_estimator": lambda o: None if o.fault == SHAM else o.estimator,
+        "by_fault": lambda o: None if o.fault == SHAM else o.fault,
+        "shams": lambda o: "all" if o.fault == SHAM else None,
+    }
+    out = {"draws": draws}
+    for name, key in groupings.items():
+        groups: dict = {}
+        for o in runs:
+            if key(o) is not None:
+                group = groups.setdefault(("robust" if o.robust else "thesis", key(o)), {})
+                group.setdefault((o.estimator, o.trial), []).append(o.clean_rank)
+        cells = {}
+        for k, by_experiment in sorted(groups.items()):
+            ranks = np.concatenate([np.array(r) for r in by_experiment.values()])
+            cells[k] = {"runs": len(ranks), "mean_rank": float(np.mean(ranks)),
+                        "ci95": half_width(ranks),
+                        "p_one_sided": rank_sum_p_value(
+                            [np.array(r) for r in by_experiment.values()], draws)}
+        rejected = holm({k: c["p_one_sided"] for k, c in cells.items()})
+        entry: dict = {}
+        for (variant, group), cell in cells.items():
+            entry.setdefault(variant, {})[group] = dict(cell, harmed=rejected[(variant, group)])
+        out[name] = entry
+    return out
+
+
 def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True,
                    backend: Backend = Backend("serial")) -> dict:
     """Every estimator under every fault: ``faults_injected`` (each fault once),
     ``faults_recovered`` (the robust filters, the smoother as it is),
     ``faults_recovered_plain`` (the filters as the thesis has them),
-    ``faults_recovered_first_draw`` (the robust filters against one clean draw),
     ``sham_runs`` and ``sham_recovered`` (the control, both filter variants: the rule's
     pass rate without a fault), ``unrecovered_rates`` (:func:`unrecovered_rates`: the
-    faults' failure rate beside the shams'), ``faults_non_finite``
+    faults' failure rate beside the shams'), ``lasting_harm`` (:func:`lasting_harm`: the
+    pooled test against the clean draws), ``faults_non_finite``
     (runs with a NaN or infinite estimate, either way), ``faults_reported`` of
     ``faults_non_finite_input`` (the faults feeding NaN or infinite inputs, which the
     estimator must report rejecting) and each outcome. One job per (family, experiment,
@@ -513,10 +606,10 @@ def measure_faults(*, trials: int = 3, seed: int = 0, progress: bool = True,
         "faults_injected": len(counted),
         "faults_recovered": sum(o.recovered for o in counted),
         "faults_recovered_plain": sum(o.recovered for o in plain),
-        "faults_recovered_first_draw": sum(o.recovered_first_draw for o in counted),
         "faults_non_finite": sum(not o.finite for o in outcomes),
         "faults_non_finite_input": len(detectable),
         "faults_reported": sum(bool(o.reported) for o in detectable),
         "unrecovered_rates": unrecovered_rates(outcomes),
+        "lasting_harm": lasting_harm(outcomes),
         "fault_outcomes": [asdict(o) for o in outcomes],
     }

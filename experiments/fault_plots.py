@@ -4,7 +4,10 @@ One row per estimator and variant (the thesis' filter, the robust one), one poin
 injected fault at ``error_after / recovery_bound`` on a log axis, coloured by fault; a
 point right of the line at 1 was not recovered. The shams (no fault) are drawn in grey:
 where they fall is the spread the rule allows a run that no fault touched. A run with a
-non-finite estimate is drawn as a cross at the axis' right edge.
+non-finite estimate is drawn as a cross at the axis' right edge. The right panel is the
+pooled test (:func:`experiments.fault_bench.lasting_harm`): per row, the mean rank of the
+faulty runs' last-quarter error among their clean draws with its 95 % interval, and the
+shams' mean rank in grey; 0.5 is where one more clean draw falls.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import numpy as np
 
 from experiments.fault_bench import SHAM, TOLERANCE, recovery_bound
 from experiments.plotting import plt, save_figure
+from experiments.statistics import half_width
 
 
 def bound_ratio(outcome: dict) -> float:
@@ -40,7 +44,8 @@ def plot_fault_recovery(outcomes: list[dict], path: Path) -> str:
     finite = ratios[np.isfinite(ratios)]
     right = max(2.0, float(finite.max()) * 1.3 if finite.size else 2.0)
     left = min(0.05, float(finite.min()) / 1.3) if finite.size else 0.05
-    fig, ax = plt.subplots(figsize=(8, 0.45 * len(rows) + 1.6))
+    fig, (ax, rank_ax) = plt.subplots(1, 2, sharey=True, figsize=(10.5, 0.45 * len(rows) + 1.6),
+                                      gridspec_kw={"width_ratios": (3, 1)})
     jitter = np.random.default_rng(0).uniform(-0.25, 0.25, len(outcomes))
     for o, ratio, dy in zip(outcomes, ratios, jitter, strict=True):
         y = rows.index((o["estimator"], o["robust"])) + dy
@@ -65,4 +70,25 @@ def plot_fault_recovery(outcomes: list[dict], path: Path) -> str:
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1))
     ax.set_title("Faults injected into the estimators: where each run ends")
     ax.grid(axis="x", alpha=0.3)
+    _draw_ranks(rank_ax, outcomes, rows)
     return save_figure(fig, Path(path))
+
+
+def _draw_ranks(ax, outcomes: list[dict], rows: list[tuple[str, bool]]) -> None:
+    """Per row, the faulty runs' mean clean rank with its 95 % interval and the shams'."""
+    for y, row in enumerate(rows):
+        ranks = {kind: np.array([o["clean_rank"] for o in outcomes
+                                 if (o["estimator"], o["robust"]) == row
+                                 and o.get("clean_rank") is not None
+                                 and (o["fault"] == SHAM) == (kind == "sham")])
+                 for kind in ("fault", "sham")}
+        for kind, dy, style in (("fault", -0.12, dict(color="C3", marker="o")),
+                                ("sham", 0.12, dict(color="0.6", marker="s"))):
+            if len(ranks[kind]):
+                ax.errorbar(ranks[kind].mean(), y + dy, xerr=half_width(ranks[kind]),
+                            ls="", capsize=2, ms=5, **style)
+    ax.axvline(0.5, color="k", lw=1, ls="--")
+    ax.set_xlim(0, 1)
+    ax.set_xlabel("mean rank among the clean draws")
+    ax.set_title("faults (red), shams (grey)", fontsize=9)
+    ax.grid(axis="x", alpha=0.3)

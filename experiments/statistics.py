@@ -19,3 +19,13 @@ def half_width(values: np.ndarray, z: float = 1.96) -> float:
     (0 for fewer than two values)."""
     values = np.asarray(values, dtype=float)
     return float(z * values.std(ddof=1) / np.sqrt(len(values))) if len(values) > 1 else 0.0
+
+
+def holm(p_values: dict, level: float = 0.05) -> dict:
+    """Holm's step-down test over ``p_values`` (key -> p): key -> rejected at ``level``
+    with the family-wise error rate held."""
+    rejected, still = {}, True
+    for i, (key, p) in enumerate(sorted(p_values.items(), key=lambda item: item[1])):
+        still = still and p <= level / (len(p_values) - i)
+        rejected[key] = still
+    return rejected

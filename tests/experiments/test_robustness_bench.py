@@ -12,12 +12,16 @@ from experiments.fault_bench import (
     HAND_FILTERS,
     SHAM,
     FaultOutcome,
+    clean_rank,
     fault_job,
     hand_faults,
     hand_motion,
     inject,
     inject_smoother,
     joint_motion,
+    lasting_harm,
+    mann_whitney_null,
+    rank_sum_p_value,
     unrecovered_rates,
 )
 from experiments.load_bench import (
@@ -85,7 +89,7 @@ def test_the_fault_bench_runs_one_job_per_filter_and_experiment(monkeypatch):
     def job(family, trial, index, seed):
         seen.append((family, trial, index))
         return [FaultOutcome(family, "nan-action", trial, True, True, True, False, 0.0, 0.0,
-                             0.0, 0.0, 0.0, True, True)]
+                             0.0, 0.0, True, None)]
 
     monkeypatch.setattr(bench, "fault_job", job)
     report = bench.measure_faults(trials=2, progress=False, backend=Backend("serial"))
@@ -100,7 +104,7 @@ def test_the_fault_bench_runs_one_job_per_filter_and_experiment(monkeypatch):
 def test_unrecovered_rates_set_the_faults_failures_beside_the_shams():
     def outcome(estimator, fault, robust, recovered):
         return FaultOutcome(estimator, fault, 0, robust, True, None, False, 0.0, 0.0, 0.0,
-                            0.0, 0.0, recovered, recovered)
+                            0.0, recovered, None)
 
     outcomes = ([outcome("hand/cpf", "stuck-on", True, i < 3) for i in range(4)]
                 + [outcome("hand/cpf", SHAM, True, True), outcome("hand/cpf", SHAM, True, False)]
@@ -116,6 +120,59 @@ def test_unrecovered_rates_set_the_faults_failures_beside_the_shams():
     # the smoother has no sham and is left out; a variant without shams has faults only
     assert rates["thesis"] == {"faults": {"failed": 0, "runs": 1, "rate": 0.0,
                                           "ci95": [0.0, pytest.approx(0.7935, abs=1e-3)]}}
+
+
+def test_a_run_is_ranked_among_its_clean_draws_ties_counting_half():
+    assert clean_rank(0.5, [0.1, 0.2, 0.9, 1.0]) == 0.5
+    assert clean_rank(0.2, [0.1, 0.2, 0.9, 1.0]) == pytest.approx(0.375)
+    assert clean_rank(float("nan"), [0.1, 0.2]) == 1.0
+
+
+def test_the_mann_whitney_null_counts_the_orderings():
+    assert mann_whitney_null(1, 5) == pytest.approx(np.full(6, 1 / 6))
+    assert mann_whitney_null(2, 2) == pytest.approx(np.array([1, 1, 2, 1, 1]) / 6)
+    null = mann_whitney_null(6, 5)
+    assert len(null) == 31 and null.sum() == pytest.approx(1.0)
+    assert null == pytest.approx(null[::-1])  # symmetric about m n / 2
+
+
+def test_the_stratified_rank_test_is_exact_and_holds_its_level_on_clean_draws():
+    assert rank_sum_p_value([np.array([0.0])], 5) == pytest.approx(1.0)
+    assert rank_sum_p_value([np.array([1.0])], 5) == pytest.approx(1 / 6)
+    assert rank_sum_p_value([np.array([1.0]), np.array([1.0])], 5) == pytest.approx(1 / 36)
+    assert rank_sum_p_value([np.array([0.9])], 5) == pytest.approx(1 / 6)  # a tie at 0.9
+    assert rank_sum_p_value([np.array([1.0, 1.0])], 5) == pytest.approx(1 / 21)  # C(7, 2)
+    # experiments of 6 runs, each ranked against the same 5 clean draws: all 11 exchangeable
+    rng = np.random.default_rng(0)
+    draws = rng.normal(size=(600, 6, 11))
+    ranks = np.mean(draws[..., :6, None] > draws[..., None, 6:], axis=-1)  # (600, 6, 6)
+    p = [rank_sum_p_value(list(group), 5) for group in ranks]  # 100 groups of 6 experiments
+    assert 0.01 <= np.mean(np.array(p) < 0.05) <= 0.07
+    assert rank_sum_p_value([np.full(6, 0.8)] * 6, 5) < 1e-3
+
+
+def test_lasting_harm_flags_the_filter_whose_runs_end_above_their_clean_draws():
+    rng = np.random.default_rng(1)
+
+    def outcome(estimator, fault, trial, rank):
+        return FaultOutcome(estimator, fault, trial, True, True, None, False, 0.0, 0.0, 0.0,
+                            0.0, True, rank)
+
+    outcomes = [outcome("hand/cpf", "stuck-on", t, r)
+                for t, r in enumerate(rng.integers(0, 6, 40) / 5)]
+    outcomes += [outcome("hand/mpf-am", "stuck-on", t, r)
+                 for t, r in enumerate(rng.integers(3, 6, 40) / 5)]
+    outcomes += [outcome("hand/mpf-am", SHAM, t, r)
+                 for t, r in enumerate(rng.integers(0, 6, 10) / 5)]
+    outcomes.append(outcome("smoother", "blind", 0, None))  # no clean draws to rank against
+    harm = lasting_harm(outcomes)
+    robust = harm["by_estimator"]["robust"]
+    assert robust["hand/mpf-am"]["harmed"] and not robust["hand/cpf"]["harmed"]
+    assert robust["hand/mpf-am"]["runs"] == 40 and "smoother" not in robust
+    assert robust["hand/mpf-am"]["mean_rank"] > 0.7 > robust["hand/cpf"]["mean_rank"]
+    assert not harm["shams"]["robust"]["all"]["harmed"]
+    assert harm["by_fault"]["robust"]["stuck-on"]["runs"] == 80
+    assert "thesis" not in harm["by_estimator"]
 
 
 def test_a_cpf_under_every_fault_stays_finite_and_reports_what_it_can():
