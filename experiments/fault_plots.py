@@ -7,7 +7,7 @@ where they fall is the spread the rule allows a run that no fault touched. A run
 non-finite estimate is drawn as a cross at the axis' right edge. The right panel is the
 pooled test (:func:`experiments.fault_bench.lasting_harm`): per row, the mean rank of the
 faulty runs' last-quarter error among their clean draws with its 95 % interval, and the
-shams' mean rank in grey; 0.5 is where one more clean draw falls.
+shams' in grey; 0.5 is where one more clean draw falls.
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ def plot_fault_recovery(outcomes: list[dict], path: Path) -> str:
     finite = ratios[np.isfinite(ratios)]
     right = max(2.0, float(finite.max()) * 1.3 if finite.size else 2.0)
     left = min(0.05, float(finite.min()) / 1.3) if finite.size else 0.05
-    fig, (ax, rank_ax) = plt.subplots(1, 2, sharey=True, figsize=(10.5, 0.45 * len(rows) + 1.6),
+    fig, (ax, rank_ax) = plt.subplots(1, 2, sharey=True, figsize=(10.5, 0.45 * len(rows) + 2.6),
                                       gridspec_kw={"width_ratios": (3, 1)})
     jitter = np.random.default_rng(0).uniform(-0.25, 0.25, len(outcomes))
     for o, ratio, dy in zip(outcomes, ratios, jitter, strict=True):
@@ -67,7 +67,8 @@ def plot_fault_recovery(outcomes: list[dict], path: Path) -> str:
     handles = [plt.Line2D([], [], marker="o", ls="", color=colours[f], label=f)
                for f in faults]
     handles.append(plt.Line2D([], [], marker="s", ls="", color="0.6", label="sham (no fault)"))
-    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1))
+    ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.09),
+              ncol=5)
     ax.set_title("Faults injected into the estimators: where each run ends")
     ax.grid(axis="x", alpha=0.3)
     _draw_ranks(rank_ax, outcomes, rows)
@@ -82,13 +83,13 @@ def _draw_ranks(ax, outcomes: list[dict], rows: list[tuple[str, bool]]) -> None:
                                  and o.get("clean_rank") is not None
                                  and (o["fault"] == SHAM) == (kind == "sham")])
                  for kind in ("fault", "sham")}
-        for kind, dy, style in (("fault", -0.12, dict(color="C3", marker="o")),
+        for kind, dy, style in (("fault", -0.12, dict(color="k", marker="o")),
                                 ("sham", 0.12, dict(color="0.6", marker="s"))):
             if len(ranks[kind]):
                 ax.errorbar(ranks[kind].mean(), y + dy, xerr=half_width(ranks[kind]),
                             ls="", capsize=2, ms=5, **style)
     ax.axvline(0.5, color="k", lw=1, ls="--")
     ax.set_xlim(0, 1)
-    ax.set_xlabel("mean rank among the clean draws")
-    ax.set_title("faults (red), shams (grey)", fontsize=9)
+    ax.set_xlabel("mean rank among clean draws")
+    ax.set_title("faults (black), shams (grey)", fontsize=9)
     ax.grid(axis="x", alpha=0.3)
