@@ -8,7 +8,8 @@ Parts: ``malformed`` (:mod:`cmanip.malformed`), ``faults``
 (the robust filters, with the outlier gate and, for the MPFs, the evidence split;
 ``faults_recovered_plain``: the filters as
 the thesis has them; ``sham_recovered`` of ``sham_runs``: the recovery rule's pass rate
-without a fault, its baseline),
+without a fault, its baseline; ``lasting_harm``: the pooled rank test of
+:func:`experiments.fault_bench.lasting_harm`),
 ``budget_overrun_ms_p99`` (the worse planner's p99 overrun under load) and
 ``memory_growth_mb_per_1000_steps`` (the worse of the two long runs) and
 ``meshcat_connections_leaked`` (of :data:`MESHCAT_SESSIONS` sessions with a client each).
