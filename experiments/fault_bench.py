@@ -68,7 +68,7 @@ from experiments.configest_study import ConfigestSettings, arm_world, build_filt
 from experiments.mpf_study import FilterSpec, TrialSettings, simulate_truth
 from experiments.mpf_study import build_filter as build_hand_filter
 from experiments.runner import Backend, Job, map_trials
-from experiments.statistics import half_width, holm, wilson_interval
+from experiments.statistics import half_width, holm, rank_sum_p_value, wilson_interval
 from models.objects import ObjectSpec
 from models.planar.world import PlanarWorld
 from models.se2 import compose
@@ -496,52 +496,17 @@ def unrecovered_rates(outcomes: list[FaultOutcome]) -> dict:
     return out
 
 
-def mann_whitney_null(m: int, n: int) -> np.ndarray:
-    """(m n + 1,) the probability of each Mann-Whitney count U (pairs in which one of ``m``
-    runs exceeds one of ``n`` others) when all ``m + n`` are exchangeable, by the
-    recursion over the largest of them."""
-    counts = {(0, j): np.ones(1) for j in range(n + 1)}
-    for i in range(1, m + 1):
-        counts[(i, 0)] = np.ones(1)
-        for j in range(1, n + 1):
-            total = np.zeros(i * j + 1)
-            total[j:] += counts[(i - 1, j)]  # the largest is one of the m: it beats all n
-            total[:len(counts[(i, j - 1)])] += counts[(i, j - 1)]
-            counts[(i, j)] = total
-    return counts[(m, n)] / counts[(m, n)].sum()
-
-
-def rank_sum_p_value(ranks_by_experiment: list[np.ndarray], draws: int) -> float:
-    """One-sided p-value of the summed :func:`clean_rank` of the runs being as large as
-    observed when every run is one more clean draw: the stratified Mann-Whitney test, exact.
-
-    Args:
-        ranks_by_experiment: per experiment and filter, the ranks of its runs, each against
-            the same ``draws`` clean draws; exchangeable within it (so correlated through
-            those draws), independent across.
-    Returns:
-        P(sum of counts >= observed) under that null (the distribution of the sum by
-        convolution; on the half-count grid that ties need).
-    """
-    total, observed = np.ones(1), 0
-    for ranks in ranks_by_experiment:
-        null = np.zeros(2 * len(ranks) * draws + 1)
-        null[::2] = mann_whitney_null(len(ranks), draws)
-        total = np.convolve(total, null)
-        observed += int(np.rint(2 * draws * np.sum(ranks)))
-    return float(np.clip(total[observed:].sum(), 0.0, 1.0))
-
-
 def lasting_harm(outcomes: list[FaultOutcome], draws: int = CLEAN_DRAWS) -> dict:
     """Whether faults leave the particle filters worse than a clean draw, over many runs.
 
     The recovery rule judges one run against :data:`CLEAN_DRAWS` others and fails about
-    one clean draw in CLEAN_DRAWS + 1. Pooled, the runs' :attr:`FaultOutcome.clean_rank` is a
-    sharper test: with no lasting harm a faulty run is one more clean draw, its rank
+    one clean draw in ``CLEAN_DRAWS + 1``. Pooled, the runs' :attr:`FaultOutcome.clean_rank`
+    is a sharper test: with no lasting harm a faulty run is one more clean draw, its rank
     uniform on ``{0, 1/D, ..., 1}`` and the mean rank 0.5, while a fault that leaves the
     filter in a wrong mode pushes its runs above the clean draws. Each run is ranked only
     against the clean draws of its own experiment and filter, so the test is the
-    stratified Mann-Whitney test (van Elteren's design; :func:`rank_sum_p_value`). Per
+    stratified Mann-Whitney test (van Elteren's design;
+    :func:`experiments.statistics.rank_sum_p_value`). Per
     variant (``thesis``, ``robust``), grouped ``by_estimator`` and ``by_fault`` (each
     fault over every filter), and the ``shams`` (the test's calibration: they are clean
     draws), each group ``{"runs", "mean_rank", "ci95" (half-width, normal), "p_one_sided",

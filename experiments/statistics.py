@@ -1,4 +1,4 @@
-"""Small statistics shared by the studies."""
+"""Small statistics shared by the studies: intervals and the fault bench's tests."""
 
 from __future__ import annotations
 
@@ -29,3 +29,41 @@ def holm(p_values: dict, level: float = 0.05) -> dict:
         still = still and p <= level / (len(p_values) - i)
         rejected[key] = still
     return rejected
+
+
+def mann_whitney_null(m: int, n: int) -> np.ndarray:
+    """(m n + 1,) the probability of each Mann-Whitney count U (pairs in which one of ``m``
+    runs exceeds one of ``n`` others) when all ``m + n`` are exchangeable, by the
+    recursion over the largest of them."""
+    counts = {(0, j): np.ones(1) for j in range(n + 1)}
+    for i in range(1, m + 1):
+        counts[(i, 0)] = np.ones(1)
+        for j in range(1, n + 1):
+            total = np.zeros(i * j + 1)
+            total[j:] += counts[(i - 1, j)]  # the largest is one of the m: it beats all n
+            total[:len(counts[(i, j - 1)])] += counts[(i, j - 1)]
+            counts[(i, j)] = total
+    return counts[(m, n)] / counts[(m, n)].sum()
+
+
+def rank_sum_p_value(ranks_by_experiment: list[np.ndarray], draws: int) -> float:
+    """One-sided p-value of the summed ranks of the runs being as large as observed when
+    every run is one more clean draw: the stratified Mann-Whitney test, exact (SciPy's
+    ``mannwhitneyu`` is exact for one stratum only; the strata's counts add up here by
+    convolving their null distributions).
+
+    Args:
+        ranks_by_experiment: per experiment and filter, the ranks of its runs (each the
+            share of the same ``draws`` clean draws it exceeds, ties half); exchangeable
+            within it (so correlated through those draws), independent across.
+    Returns:
+        P(sum of counts >= observed) under that null (the distribution of the sum by
+        convolution; on the half-count grid that ties need).
+    """
+    total, observed = np.ones(1), 0
+    for ranks in ranks_by_experiment:
+        null = np.zeros(2 * len(ranks) * draws + 1)
+        null[::2] = mann_whitney_null(len(ranks), draws)
+        total = np.convolve(total, null)
+        observed += int(np.rint(2 * draws * np.sum(ranks)))
+    return float(np.clip(total[observed:].sum(), 0.0, 1.0))

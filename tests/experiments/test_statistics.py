@@ -1,9 +1,15 @@
-"""The studies' intervals."""
+"""The studies' intervals and tests."""
 
 import numpy as np
 import pytest
 
-from experiments.statistics import half_width, holm, wilson_interval
+from experiments.statistics import (
+    half_width,
+    holm,
+    mann_whitney_null,
+    rank_sum_p_value,
+    wilson_interval,
+)
 
 
 def test_wilson_interval_stays_in_the_unit_interval_and_matches_the_formula():
@@ -28,3 +34,26 @@ def test_holm_steps_down_from_the_smallest_p_value():
     # 0.01 <= 0.05 / 3, then 0.026 > 0.05 / 2 stops the steps: b is not rejected either
     assert holm({"a": 0.01, "b": 0.03, "c": 0.026}) == {"a": True, "b": False, "c": False}
     assert holm({"a": 0.5}) == {"a": False}
+
+
+def test_the_mann_whitney_null_counts_the_orderings():
+    assert mann_whitney_null(1, 5) == pytest.approx(np.full(6, 1 / 6))
+    assert mann_whitney_null(2, 2) == pytest.approx(np.array([1, 1, 2, 1, 1]) / 6)
+    null = mann_whitney_null(6, 5)
+    assert len(null) == 31 and null.sum() == pytest.approx(1.0)
+    assert null == pytest.approx(null[::-1])  # symmetric about m n / 2
+
+
+def test_the_stratified_rank_test_is_exact_and_holds_its_level_on_clean_draws():
+    assert rank_sum_p_value([np.array([0.0])], 5) == pytest.approx(1.0)
+    assert rank_sum_p_value([np.array([1.0])], 5) == pytest.approx(1 / 6)
+    assert rank_sum_p_value([np.array([1.0]), np.array([1.0])], 5) == pytest.approx(1 / 36)
+    assert rank_sum_p_value([np.array([0.9])], 5) == pytest.approx(1 / 6)  # a tie at 0.9
+    assert rank_sum_p_value([np.array([1.0, 1.0])], 5) == pytest.approx(1 / 21)  # C(7, 2)
+    # experiments of 6 runs, each ranked against the same 5 clean draws: all 11 exchangeable
+    rng = np.random.default_rng(0)
+    draws = rng.normal(size=(600, 6, 11))
+    ranks = np.mean(draws[..., :6, None] > draws[..., None, 6:], axis=-1)  # (600, 6, 6)
+    p = [rank_sum_p_value(list(group), 5) for group in ranks]  # 100 groups of 6 experiments
+    assert 0.01 <= np.mean(np.array(p) < 0.05) <= 0.07
+    assert rank_sum_p_value([np.full(6, 0.8)] * 6, 5) < 1e-3
