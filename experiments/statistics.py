@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 
@@ -31,10 +33,12 @@ def holm(p_values: dict, level: float = 0.05) -> dict:
     return rejected
 
 
+@lru_cache(maxsize=64)
 def mann_whitney_null(m: int, n: int) -> np.ndarray:
     """(m n + 1,) the probability of each Mann-Whitney count U (pairs in which one of ``m``
     runs exceeds one of ``n`` others) when all ``m + n`` are exchangeable, by the
-    recursion over the largest of them."""
+    recursion over the largest of them. Cached (every experiment of a group asks for the
+    same ``m, n``) and read-only, so a caller cannot change the cached table."""
     counts = {(0, j): np.ones(1) for j in range(n + 1)}
     for i in range(1, m + 1):
         counts[(i, 0)] = np.ones(1)
@@ -43,7 +47,9 @@ def mann_whitney_null(m: int, n: int) -> np.ndarray:
             total[j:] += counts[(i - 1, j)]  # the largest is one of the m: it beats all n
             total[:len(counts[(i, j - 1)])] += counts[(i, j - 1)]
             counts[(i, j)] = total
-    return counts[(m, n)] / counts[(m, n)].sum()
+    null = counts[(m, n)] / counts[(m, n)].sum()
+    null.flags.writeable = False
+    return null
 
 
 def rank_sum_p_value(ranks_by_experiment: list[np.ndarray], draws: int) -> float:
