@@ -56,7 +56,7 @@ def measure_robustness(parts, *, limit_per_kind: int | None = None, fault_trials
             from experiments.fault_plots import plot_fault_recovery
 
             fault_figure.parent.mkdir(parents=True, exist_ok=True)
-            plot_fault_recovery(report["fault_outcomes"], fault_figure)
+            plot_fault_recovery(report["fault_outcomes"], report["lasting_harm"], fault_figure)
             print(f"wrote {fault_figure}")
     if "budgets" in parts:
         report.update(_budgets(decisions, budget_s, cache_dir, seed, progress))
@@ -88,9 +88,15 @@ def _faults(trials: int, seed: int, progress: bool, backend) -> dict:
         print(f"  {variant} filters, rank of a run's last-quarter error among its "
               f"{harm['draws']} clean draws (0.5: a clean draw; shams {sham['mean_rank']:.2f} "
               f"+- {sham['ci95']:.2f}, p {sham['p_one_sided']:.2f}):")
+        every = harm["faults"][variant]["all"]
+        print(f"    every fault {every['mean_rank']:.2f}{' HARMED' if every['harmed'] else ''}"
+              f" over {every['runs']} runs: at most "
+              f"{100 * every['harmed_share_upper95']:.0f} % of them left above all their "
+              f"clean draws (95 %); per group, mean rank (that bound):")
         for grouping in ("by_estimator", "by_fault"):
             print("    " + ", ".join(
-                f"{group} {c['mean_rank']:.2f}{' HARMED' if c['harmed'] else ''}"
+                f"{group} {c['mean_rank']:.2f} ({100 * c['harmed_share_upper95']:.0f} %)"
+                f"{' HARMED' if c['harmed'] else ''}"
                 for group, c in harm[grouping].get(variant, {}).items()))
     by = {}
     for o in outcomes:

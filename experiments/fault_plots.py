@@ -18,7 +18,6 @@ import numpy as np
 
 from experiments.fault_bench import SHAM, TOLERANCE, recovery_bound
 from experiments.plotting import plt, save_figure
-from experiments.statistics import half_width
 
 
 def bound_ratio(outcome: dict) -> float:
@@ -32,8 +31,9 @@ def bound_ratio(outcome: dict) -> float:
     return outcome["error_after"] / bound
 
 
-def plot_fault_recovery(outcomes: list[dict], path: Path) -> str:
-    """Draw ``outcomes`` (the report's ``fault_outcomes``) to ``path`` (PNG); its name."""
+def plot_fault_recovery(outcomes: list[dict], harm: dict, path: Path) -> str:
+    """Draw ``outcomes`` (the report's ``fault_outcomes``) and the pooled test ``harm``
+    over them (its ``lasting_harm``) to ``path`` (PNG); its name."""
     if not outcomes:
         raise ValueError("no fault outcomes to plot")
     rows = sorted({(o["estimator"], o["robust"]) for o in outcomes})
@@ -71,23 +71,22 @@ def plot_fault_recovery(outcomes: list[dict], path: Path) -> str:
               ncol=5)
     ax.set_title("Faults injected into the estimators: where each run ends")
     ax.grid(axis="x", alpha=0.3)
-    _draw_ranks(rank_ax, outcomes, rows)
+    _draw_ranks(rank_ax, harm, rows)
     return save_figure(fig, Path(path))
 
 
-def _draw_ranks(ax, outcomes: list[dict], rows: list[tuple[str, bool]]) -> None:
-    """Per row, the faulty runs' mean clean rank with its 95 % interval and the shams'."""
-    for y, row in enumerate(rows):
-        ranks = {kind: np.array([o["clean_rank"] for o in outcomes
-                                 if (o["estimator"], o["robust"]) == row
-                                 and o.get("clean_rank") is not None
-                                 and (o["fault"] == SHAM) == (kind == "sham")])
-                 for kind in ("fault", "sham")}
-        for kind, dy, style in (("fault", -0.12, dict(color="k", marker="o")),
-                                ("sham", 0.12, dict(color="0.6", marker="s"))):
-            if len(ranks[kind]):
-                ax.errorbar(ranks[kind].mean(), y + dy, xerr=half_width(ranks[kind]),
-                            ls="", capsize=2, ms=5, **style)
+def _draw_ranks(ax, harm: dict, rows: list[tuple[str, bool]]) -> None:
+    """Per row, the faulty runs' mean clean rank with its 95 % interval and the shams',
+    as ``harm`` (:func:`experiments.fault_bench.lasting_harm`) has them."""
+    for y, (estimator, robust) in enumerate(rows):
+        variant = "robust" if robust else "thesis"
+        for grouping, dy, style in (("by_estimator", -0.12, dict(color="k", marker="o")),
+                                    ("shams_by_estimator", 0.12,
+                                     dict(color="0.6", marker="s"))):
+            cell = harm[grouping].get(variant, {}).get(estimator)
+            if cell is not None:
+                ax.errorbar(cell["mean_rank"], y + dy, xerr=cell["ci95"], ls="",
+                            capsize=2, ms=5, **style)
     ax.axvline(0.5, color="k", lw=1, ls="--")
     ax.set_xlim(0, 1)
     ax.set_xlabel("mean rank among clean draws")

@@ -73,3 +73,28 @@ def rank_sum_p_value(ranks_by_experiment: list[np.ndarray], draws: int) -> float
         total = np.convolve(total, null)
         observed += int(np.rint(2 * draws * np.sum(ranks)))
     return float(np.clip(total[observed:].sum(), 0.0, 1.0))
+
+
+def harmed_share_upper(ranks_by_experiment: list[np.ndarray], draws: int,
+                       z: float = 1.645) -> float:
+    """One-sided upper confidence bound (95 % for ``z = 1.645``) on the share of runs that
+    end above every clean draw beyond what a clean draw does.
+
+    The model: a share ``pi`` of the runs are harmed, each ranked 1 (above all ``draws``
+    clean draws of its experiment), the rest are clean draws, ranked uniformly (mean 0.5),
+    so the mean rank is ``0.5 + pi / 2``. The bound is ``2 (mean + z sd - 0.5)`` clipped to
+    [0, 1], with ``sd`` the mean rank's standard deviation when every run is a clean draw:
+    exact for the runs of one experiment sharing its clean draws (the Mann-Whitney
+    variance ``m (m + n + 1) / 12`` of the count per experiment of ``m`` runs and ``n``
+    draws, ties ignored); runs pinned at rank 1 and ties only lower it, so the bound is
+    conservative. A run harmed less than that (ranked below 1) is counted as a fraction
+    of one.
+
+    Args:
+        ranks_by_experiment: as for :func:`rank_sum_p_value`.
+    """
+    runs = sum(len(r) for r in ranks_by_experiment)
+    mean = sum(float(np.sum(r)) for r in ranks_by_experiment) / runs
+    variance = sum(len(r) * (len(r) + draws + 1) / (12 * draws)
+                   for r in ranks_by_experiment) / runs ** 2
+    return float(np.clip(2 * (mean + z * np.sqrt(variance) - 0.5), 0.0, 1.0))

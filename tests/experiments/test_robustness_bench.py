@@ -147,7 +147,13 @@ def test_lasting_harm_flags_the_filter_whose_runs_end_above_their_clean_draws():
     assert robust["hand/mpf-am"]["mean_rank"] > 0.7 > robust["hand/cpf"]["mean_rank"]
     assert not harm["shams"]["robust"]["all"]["harmed"]
     assert harm["by_fault"]["robust"]["stuck-on"]["runs"] == 80
+    assert harm["faults"]["robust"]["all"]["runs"] == 80
+    assert harm["shams_by_estimator"]["robust"]["hand/mpf-am"]["runs"] == 10
     assert "thesis" not in harm["by_estimator"]
+    # the harmed filter's runs sit at 3-5 of 5: the bound cannot rule out that most were
+    assert robust["hand/mpf-am"]["harmed_share_upper95"] > 0.5
+    assert robust["hand/cpf"]["harmed_share_upper95"] < robust["hand/mpf-am"][
+        "harmed_share_upper95"]
 
 
 def test_a_cpf_under_every_fault_stays_finite_and_reports_what_it_can():
@@ -199,13 +205,14 @@ def test_the_fault_figure_puts_exactly_the_unrecovered_runs_past_the_bound(tmp_p
 
     from experiments.fault_plots import bound_ratio, plot_fault_recovery
 
-    outcomes = [asdict(o) for o in hand_faults(1, filters=(FilterSpec("cpf", "cpf"),),
-                                               progress=False)]
+    runs = hand_faults(1, filters=(FilterSpec("cpf", "cpf"),), progress=False)
+    harm = lasting_harm(runs)
+    outcomes = [asdict(o) for o in runs]
     outcomes.append(dict(outcomes[0], fault="stuck-on", error_after=1.0, recovered=False))
     outcomes.append(dict(outcomes[0], fault="nan-action", finite=False, recovered=False))
     assert all((bound_ratio(o) <= 1) == o["recovered"] for o in outcomes)
     assert bound_ratio(outcomes[-1]) == float("inf")
-    assert plot_fault_recovery(outcomes, tmp_path / "faults.png") == "faults.png"
+    assert plot_fault_recovery(outcomes, harm, tmp_path / "faults.png") == "faults.png"
     assert (tmp_path / "faults.png").stat().st_size > 10_000
     with pytest.raises(ValueError, match="no fault outcomes"):
-        plot_fault_recovery([], tmp_path / "empty.png")
+        plot_fault_recovery([], harm, tmp_path / "empty.png")

@@ -5,6 +5,7 @@ import pytest
 
 from experiments.statistics import (
     half_width,
+    harmed_share_upper,
     holm,
     mann_whitney_null,
     rank_sum_p_value,
@@ -57,3 +58,21 @@ def test_the_stratified_rank_test_is_exact_and_holds_its_level_on_clean_draws():
     p = [rank_sum_p_value(list(group), 5) for group in ranks]  # 100 groups of 6 experiments
     assert 0.01 <= np.mean(np.array(p) < 0.05) <= 0.07
     assert rank_sum_p_value([np.full(6, 0.8)] * 6, 5) < 1e-3
+
+
+def test_the_harmed_share_bound_covers_the_share_of_runs_a_fault_left_above_its_draws():
+    # 6 experiments of 6 runs, each against the same 11 clean draws, a share of the runs
+    # harmed: ranked above all the draws; the rest exchangeable with them
+    rng = np.random.default_rng(2)
+    values = rng.normal(size=(400, 6, 17))
+    harmed = rng.uniform(size=(400, 6, 6)) < 0.2
+    values[..., :6] = np.where(harmed, np.inf, values[..., :6])
+    ranks = np.mean(values[..., :6, None] > values[..., None, 6:], axis=-1)  # (400, 6, 6)
+    bounds = np.array([harmed_share_upper(list(group), 11) for group in ranks])
+    assert np.mean(bounds >= harmed.mean(axis=(1, 2))) >= 0.93  # one-sided 95 %
+    clean = np.array([harmed_share_upper(list(group), 11)
+                      for group in np.mean(rng.normal(size=(400, 6, 6, 1))
+                                           > rng.normal(size=(400, 6, 1, 11)), axis=-1)])
+    assert 0.1 < np.median(clean) < 0.35 and clean.min() >= 0.0
+    assert harmed_share_upper([np.ones(6)] * 6, 11) == 1.0
+    assert harmed_share_upper([np.zeros(6)] * 6, 11) == 0.0
