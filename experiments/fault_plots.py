@@ -7,7 +7,8 @@ where they fall is the spread the rule allows a run that no fault touched. A run
 non-finite estimate is drawn as a cross at the axis' right edge. The right panel is the
 pooled test (:func:`experiments.fault_bench.lasting_harm`): per row, the mean rank of the
 faulty runs' last-quarter error among their clean draws with its 95 % interval, and the
-shams' in grey; 0.5 is where one more clean draw falls.
+shams' in grey; 0.5 is where one more clean draw falls. At its right edge, the most of the
+row's faulty runs that a fault can have left above all their clean draws (one-sided 95 %).
 """
 
 from __future__ import annotations
@@ -87,8 +88,13 @@ def _draw_ranks(ax, harm: dict, rows: list[tuple[str, bool]]) -> None:
             if cell is not None:
                 ax.errorbar(cell["mean_rank"], y + dy, xerr=cell["ci95"], ls="",
                             capsize=2, ms=5, **style)
+        faults = harm["by_estimator"].get(variant, {}).get(estimator)
+        if faults is not None:
+            ax.text(0.98, y, f"\u2264{100 * faults['harmed_share_upper95']:.0f} %",
+                    ha="right", va="center", fontsize=7)
     ax.axvline(0.5, color="k", lw=1, ls="--")
     ax.set_xlim(0, 1)
     ax.set_xlabel("mean rank among clean draws")
-    ax.set_title("faults (black), shams (grey)", fontsize=9)
+    ax.set_title("faults (black), shams (grey);\nat most this share harmed (95 %)",
+                 fontsize=8)
     ax.grid(axis="x", alpha=0.3)
