@@ -148,6 +148,13 @@ def _robustness(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if value is not None and value < 1:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 1, got {value}")
+    if "memory" in args.parts:
+        from experiments.load_bench import MIN_MEMORY_STEPS
+
+        if args.smoother_updates < MIN_MEMORY_STEPS or 5 * args.decisions < MIN_MEMORY_STEPS:
+            raise ValueError(f"memory: --smoother-updates and five times --decisions must "
+                             f"be >= {MIN_MEMORY_STEPS} (the growth is a slope over the "
+                             f"run), got {args.smoother_updates} and {5 * args.decisions}")
     if not args.budget_s > 0:
         raise ValueError(f"--budget-s must be > 0, got {args.budget_s}")
     if args.fault_figure is not None and "faults" not in args.parts:

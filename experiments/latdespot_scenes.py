@@ -233,7 +233,7 @@ def scene_lat_pomdp(scene_name: str, rel: RelSettings, scenes: SceneSettings, *,
     :func:`~experiments.latdespot_study.build_rel_problem`'s, built here when not given),
     the lattice's IK table from ``scenes.cache_dir`` (solved into it on first use)."""
     if model is None:
-        model, belief, _ = build_rel_problem(rel)
+        model, belief, _ = build_rel_problem(rel, progress=progress)
     scene = SceneSpec.load(scene_name, object_override=rel.object_name)
     spec = lattice_spec(scene, model.spec.step_m, scenes)
     cache = None if scenes.cache_dir is None else Path(scenes.cache_dir)

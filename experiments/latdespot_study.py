@@ -165,12 +165,15 @@ class DespotOnDiscreteBelief:
     __call__ = act
 
 
-def build_rel_problem(settings: RelSettings) -> tuple[HandPOMDP, GaussianBelief, np.ndarray]:
-    """The ch. 7 model, its initial belief and that belief's discrete version (S,)."""
+def build_rel_problem(settings: RelSettings, *, progress: bool = True
+                      ) -> tuple[HandPOMDP, GaussianBelief, np.ndarray]:
+    """The ch. 7 model, its initial belief and that belief's discrete version (S,);
+    ``progress``: a bar over the model's actions while its transitions are sampled."""
     world = PlanarWorld.load(settings.object_name, sensors=settings.sensors,
                              error_rate=settings.sensor_error_rate)
     spec = HandProblemSpec.load(settings.problem)
-    model = build_hand_pomdp(world, spec, rng=np.random.default_rng([settings.seed, 1]))
+    model = build_hand_pomdp(world, spec, rng=np.random.default_rng([settings.seed, 1]),
+                             progress=progress)
     belief = GaussianBelief(settings.belief_mean, settings.belief_std)
     samples = belief.sample(world, settings.belief_particles,
                             rng=np.random.default_rng([settings.seed, 2]))

@@ -37,6 +37,7 @@ import multiprocessing
 import os
 import socket
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -172,13 +173,33 @@ def growth_mb_per_1000(steps: np.ndarray, rss_mb: np.ndarray) -> float:
     return float(np.polyfit(steps[keep], rss_mb[keep], 1)[0] * 1000)
 
 
-def closed_loop_memory(decisions: int, *, sample_every: int = 50, seed: int = 0,
+MEMORY_SAMPLES = 20
+"""RSS samples over a long run at least (fewer only when the run has fewer steps)."""
+
+MIN_MEMORY_STEPS = 10
+"""The shortest long run whose growth can be measured: the slope needs samples after the
+first fifth."""
+
+
+def _sample_every(steps: int, sample_every: int | None) -> int:
+    if steps < MIN_MEMORY_STEPS:
+        raise ValueError(f"a memory run needs at least {MIN_MEMORY_STEPS} steps, got {steps}")
+    return sample_every if sample_every is not None else max(1, steps // MEMORY_SAMPLES)
+
+
+def closed_loop_memory(decisions: int, *, sample_every: int | None = None, seed: int = 0,
                        progress: bool = True) -> dict:
     """RSS over ``decisions`` closed-loop decisions on the planar model (episodes of
     Rel-DESPOT and the MPF, :class:`~experiments.latdespot_continuous.EpisodeRunner`, with
-    a 20-trial DESPOT budget so that thousands of decisions take minutes)."""
+    a 20-trial DESPOT budget so that thousands of decisions take minutes), sampled every
+    ``sample_every`` decisions (None: :data:`MEMORY_SAMPLES` times over the run).
+
+    Raises:
+        ValueError: fewer than :data:`MIN_MEMORY_STEPS` decisions.
+    """
+    sample_every = _sample_every(decisions, sample_every)
     settings = RelSettings(seed=seed, continuous_despot_trials=20, horizon=50)
-    runner = EpisodeRunner(settings, build_rel_problem)
+    runner = EpisodeRunner(settings, partial(build_rel_problem, progress=progress))
     files_before = _open_files()
     steps, rss = [], []
     done, episode = 0, 0
@@ -203,10 +224,16 @@ def closed_loop_memory(decisions: int, *, sample_every: int = 50, seed: int = 0,
             "open_files_before": files_before, "open_files_after": _open_files()}
 
 
-def smoother_memory(updates: int, *, sample_every: int = 250, seed: int = 0,
+def smoother_memory(updates: int, *, sample_every: int | None = None, seed: int = 0,
                     progress: bool = True) -> dict:
     """RSS over ``updates`` smoother updates (the recommended settings) on a simulated
-    push replayed end to end."""
+    push replayed end to end, sampled every ``sample_every`` updates (None:
+    :data:`MEMORY_SAMPLES` times over the run).
+
+    Raises:
+        ValueError: fewer than :data:`MIN_MEMORY_STEPS` updates.
+    """
+    sample_every = _sample_every(updates, sample_every)
     from estimation.pushing.noise import identify_from_runs
     from estimation.pushing.smoother import VisuoTactileSmoother, recommended_settings
     from experiments.fault_bench import simulated_push

@@ -82,3 +82,6 @@ def test_bad_robustness_options_are_clear_errors(capsys):
     assert "add faults to --parts" in capsys.readouterr().err
     assert main(["bench", "robustness", "--parts", "faults", "--fault-figure", "f.svg"]) == 2
     assert "must end in .png" in capsys.readouterr().err
+    assert main(["bench", "robustness", "--parts", "memory", "--smoother-updates", "5"]) == 2
+    assert "memory: --smoother-updates and five times --decisions must be >= 10" in \
+        capsys.readouterr().err
