@@ -69,7 +69,7 @@ from experiments.mpf_study import FilterSpec, TrialSettings, simulate_truth
 from experiments.mpf_study import build_filter as build_hand_filter
 from experiments.runner import Backend, Job, map_trials
 from experiments.statistics import (
-    half_width,
+    clustered_half_width,
     harmed_share_upper,
     holm,
     rank_sum_p_value,
@@ -516,7 +516,8 @@ def lasting_harm(outcomes: list[FaultOutcome], draws: int = CLEAN_DRAWS) -> dict
     variant (``thesis``, ``robust``), grouped ``faults`` (every faulty run, as the
     group ``all``), ``by_estimator``, ``by_fault`` (each fault over every filter), and the
     shams, ``shams`` (as ``all``) and ``shams_by_estimator`` (the test's calibration:
-    they are clean draws), each group ``{"runs", "mean_rank", "ci95" (half-width, normal),
+    they are clean draws), each group ``{"runs", "mean_rank", "ci95" (half-width,
+    normal, clustered by experiment: the runs of one experiment share its clean draws),
     "p_one_sided", "harmed", "harmed_share_upper95"}``; ``harmed`` is Holm's test at 5 %
     over every group of the grouping (both variants), so a grouping's false alarms stay
     below 5 % in all; ``harmed_share_upper95`` bounds the share of the group's runs that a
@@ -543,7 +544,7 @@ def lasting_harm(outcomes: list[FaultOutcome], draws: int = CLEAN_DRAWS) -> dict
             strata = [np.array(r) for r in by_experiment.values()]
             ranks = np.concatenate(strata)
             cells[k] = {"runs": len(ranks), "mean_rank": float(np.mean(ranks)),
-                        "ci95": half_width(ranks),
+                        "ci95": clustered_half_width(strata),
                         "p_one_sided": rank_sum_p_value(strata, draws),
                         "harmed_share_upper95": harmed_share_upper(strata, draws)}
         rejected = holm({k: c["p_one_sided"] for k, c in cells.items()})

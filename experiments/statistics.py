@@ -23,6 +23,21 @@ def half_width(values: np.ndarray, z: float = 1.96) -> float:
     return float(z * values.std(ddof=1) / np.sqrt(len(values))) if len(values) > 1 else 0.0
 
 
+def clustered_half_width(groups: list[np.ndarray], z: float = 1.96) -> float:
+    """Half-width of the 95 % (``z = 1.96``) interval of the mean of all the values in
+    ``groups``, the groups independent and the values within a group possibly correlated
+    (e.g. runs ranked against the same clean draws): the cluster-robust standard error,
+    ``sqrt(sum_g (sum of g - n_g mean)^2) / N`` with the usual ``G / (G - 1)`` correction
+    (0 for fewer than two groups)."""
+    if len(groups) < 2:
+        return 0.0
+    sums = np.array([np.sum(g) for g in groups], dtype=float)
+    sizes = np.array([len(g) for g in groups], dtype=float)
+    mean = sums.sum() / sizes.sum()
+    variance = np.sum((sums - sizes * mean) ** 2) * len(groups) / (len(groups) - 1)
+    return float(z * np.sqrt(variance) / sizes.sum())
+
+
 def holm(p_values: dict, level: float = 0.05) -> dict:
     """Holm's step-down test over ``p_values`` (key -> p): key -> rejected at ``level``
     with the family-wise error rate held."""

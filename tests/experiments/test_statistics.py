@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from experiments.statistics import (
+    clustered_half_width,
     half_width,
     harmed_share_upper,
     holm,
@@ -76,3 +77,16 @@ def test_the_harmed_share_bound_covers_the_share_of_runs_a_fault_left_above_its_
     assert 0.1 < np.median(clean) < 0.35 and clean.min() >= 0.0
     assert harmed_share_upper([np.ones(6)] * 6, 11) == 1.0
     assert harmed_share_upper([np.zeros(6)] * 6, 11) == 0.0
+
+
+def test_the_clustered_half_width_covers_means_of_runs_that_share_their_draws():
+    # groups of 6 values sharing a group effect: the iid half-width is too narrow
+    rng = np.random.default_rng(3)
+    values = rng.normal(size=(2000, 12, 1)) + rng.normal(size=(2000, 12, 6))
+    clustered = np.array([clustered_half_width(list(v)) for v in values])
+    iid = np.array([half_width(v.ravel()) for v in values])
+    covered = np.abs(values.mean(axis=(1, 2))) <= clustered
+    assert 0.89 <= covered.mean() <= 0.97  # 12 groups, normal quantile: a little below 95 %
+    assert np.mean(np.abs(values.mean(axis=(1, 2))) <= iid) < 0.8
+    assert clustered_half_width([np.ones(3)]) == 0.0
+    assert clustered_half_width([np.ones(3), np.ones(2)]) == 0.0
