@@ -99,10 +99,10 @@ def harmed_share_upper(ranks_by_experiment: list[np.ndarray], draws: int,
     clean draws of its experiment), the rest are clean draws, ranked uniformly (mean 0.5),
     so the mean rank is ``0.5 + pi / 2``. The bound is ``2 (mean + z sd - 0.5)`` clipped to
     [0, 1], with ``sd`` the mean rank's standard deviation when every run is a clean draw:
-    exact for the runs of one experiment sharing its clean draws (the Mann-Whitney
-    variance ``m (m + n + 1) / 12`` of the count per experiment of ``m`` runs and ``n``
-    draws, ties ignored); runs pinned at rank 1 and ties only lower it, so the bound is
-    conservative. A run harmed less than that (ranked below 1) is counted as a fraction
+    exact for the runs of one experiment sharing its clean draws (the Mann-Whitney count
+    U of ``m`` runs against ``n`` draws has variance ``m n (m + n + 1) / 12``, so the
+    experiment's summed ranks ``U / n`` have ``m (m + n + 1) / (12 n)``; ties ignored);
+    runs pinned at rank 1 and ties only lower it, so the bound is conservative. A run harmed less than that (ranked below 1) is counted as a fraction
     of one.
 
     Args:

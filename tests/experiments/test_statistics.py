@@ -56,7 +56,7 @@ def test_the_stratified_rank_test_is_exact_and_holds_its_level_on_clean_draws():
     rng = np.random.default_rng(0)
     draws = rng.normal(size=(600, 6, 11))
     ranks = np.mean(draws[..., :6, None] > draws[..., None, 6:], axis=-1)  # (600, 6, 6)
-    p = [rank_sum_p_value(list(group), 5) for group in ranks]  # 100 groups of 6 experiments
+    p = [rank_sum_p_value(list(group), 5) for group in ranks]  # 600 groups of 6 experiments
     assert 0.01 <= np.mean(np.array(p) < 0.05) <= 0.07
     assert rank_sum_p_value([np.full(6, 0.8)] * 6, 5) < 1e-3
 
