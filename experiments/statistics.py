@@ -102,8 +102,8 @@ def harmed_share_upper(ranks_by_experiment: list[np.ndarray], draws: int,
     exact for the runs of one experiment sharing its clean draws (the Mann-Whitney count
     U of ``m`` runs against ``n`` draws has variance ``m n (m + n + 1) / 12``, so the
     experiment's summed ranks ``U / n`` have ``m (m + n + 1) / (12 n)``; ties ignored);
-    runs pinned at rank 1 and ties only lower it, so the bound is conservative. A run harmed less than that (ranked below 1) is counted as a fraction
-    of one.
+    runs pinned at rank 1 and ties only lower it, so the bound is conservative. A run
+    harmed less than that (ranked below 1) is counted as a fraction of one.
 
     Args:
         ranks_by_experiment: as for :func:`rank_sum_p_value`.
