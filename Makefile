@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml | $(BIN)/python
 	touch $(STAMP)
 
 # One closed-loop episode with the POMDP policy; the planning model is solved on first use
-# (about 45 s: 400 search trials) and kept in out/cache; the episode takes about 15 s.
+# (400 point-based trials, 8 s to 45 s) and kept in out/cache; the episode takes about 15 s.
 demo: $(STAMP)
 	$(BIN)/cmanip run --planner lat-despot --scene cul_de_sac --belief-mean 0.22 0 0 --seed 1 --out out/demo
 
