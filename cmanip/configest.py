@@ -52,10 +52,11 @@ def register(commands) -> None:
 
 
 def mpf_variant_options(parser, defaults) -> None:
-    """``--ball-radius``, and ``--constraints``, ``--dual-share``, ``--metric`` and
-    ``--dual-density``, the configuration MPF's variants beyond the thesis (defaults from
-    ``defaults``, a settings dataclass with these fields)."""
+    """``--ball-radius``, and ``--constraints``, ``--dual-share``, ``--metric``,
+    ``--dual-density`` and ``--dual-lift``, the configuration MPF's variants beyond the
+    thesis (defaults from ``defaults``, a settings dataclass with these fields)."""
     from estimation.configuration.history import DUAL_DENSITIES
+    from estimation.configuration.lift import DUAL_LIFTS
     from estimation.configuration.manifold import METRICS
     from estimation.configuration.projection import CONSTRAINTS
     from estimation.particles.filters import DUAL_SHARES
@@ -78,6 +79,10 @@ def mpf_variant_options(parser, defaults) -> None:
                    "how the MPF weighs its duals (kernel: the predicted particles' kernel "
                    "density, sec. 4.2.3; history: the exact density of every reading so "
                    "far, with joint-metric balls of the offset's sd)", choices=DUAL_DENSITIES)
+    setting_option(parser, "--dual-lift", defaults.dual_lift,
+                   "where the MPF's duals sit (surface: on the contact manifold, sec. 5.2; "
+                   "normal: lifted along the contact normal to the commanded-side state the "
+                   "dual density favours)", choices=DUAL_LIFTS)
 
 
 def proprioception_option(parser, defaults) -> None:
@@ -100,7 +105,7 @@ def _run(args: argparse.Namespace) -> int:
 
     check_outlier_gate(args)
     same = ("arm", "particles", "dual_particles", "mixing_rate", "seed", "tactile_error_rate",
-            "constraints", "dual_share", "metric", "dual_density", "proprioception")
+            "constraints", "dual_share", "metric", "dual_density", "dual_lift", "proprioception")
     settings = overridden(ConfigestEpisodeSettings(), args, {
         **{key: key for key in same}, "outlier_gate": "outlier_log_evidence",
         "ball_radius": "ball_radius_rad",

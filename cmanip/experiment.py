@@ -186,7 +186,7 @@ def _configest(args: argparse.Namespace) -> int:
         "trials": "trials", "seed": "seed", "method": "method",
         "ball_radius": "ball_radius_rad", "constraints": "constraints",
         "dual_share": "dual_share", "metric": "metric", "dual_density": "dual_density",
-        "proprioception": "proprioception"})
+        "dual_lift": "dual_lift", "proprioception": "proprioception"})
     if "arm" in vars(args):
         settings = replace(settings, arms=ARMS if args.arm == "all" else (args.arm,))
     for arm in settings.arms:  # a bad arm file (or link) fails before any trial runs

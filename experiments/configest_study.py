@@ -33,6 +33,7 @@ from estimation.configuration.history import (
     check_dual_density,
     dual_ball_radius,
 )
+from estimation.configuration.lift import NormalLift, check_dual_lift
 from estimation.configuration.manifold import (
     ExplicitTwoLinkManifold,
     ProjectionManifold,
@@ -81,6 +82,8 @@ class ConfigestSettings:
             :mod:`estimation.configuration.proprioception`).
         dual_density: how the MPFs weigh their duals, ``kernel`` (sec. 4.2.3) or
             ``history`` (see :mod:`estimation.configuration.history`).
+        dual_lift: where the MPFs' duals sit, ``surface`` (sec. 5.2) or ``normal``
+            (lifted to the commanded side; see :mod:`estimation.configuration.lift`).
     """
 
     arms: tuple[str, ...] = ARMS
@@ -97,6 +100,7 @@ class ConfigestSettings:
     metric: str = "joint"
     proprioception: str = "first"
     dual_density: str = "kernel"
+    dual_lift: str = "surface"
 
     def __post_init__(self):
         if self.trials < 2:
@@ -120,6 +124,7 @@ class ConfigestSettings:
             raise ValueError(f"dual_share must be one of {', '.join(DUAL_SHARES)}, got "
                              f"{self.dual_share!r}")
         check_dual_density(self.dual_density, self.metric, self.dual_share)
+        check_dual_lift(self.dual_lift)
 
 
 def filters_for(arm: str) -> tuple[str, ...]:
@@ -182,7 +187,8 @@ def build_filter(world: ArmWorld, kind: str, settings: ConfigestSettings, *,
                                    metric=settings.metric))
     filt = make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
                        mixing_rate=settings.mixing_rate, dual_share=settings.dual_share,
-                       outlier_log_evidence=outlier_log_evidence)
+                       outlier_log_evidence=outlier_log_evidence,
+                       dual_lift=NormalLift(world) if settings.dual_lift == "normal" else None)
     return filt, settings.particles - settings.dual_particles, manifold
 
 

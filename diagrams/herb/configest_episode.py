@@ -33,6 +33,7 @@ from diagrams.herb.configuration import ArmBeliefDrawer, ConfigurationEstimator,
 from diagrams.herb.station import add_herb_plant, add_meshcat
 from diagrams.tactile_sensor import TactileSensor
 from estimation.configuration.history import check_dual_density, dual_ball_radius
+from estimation.configuration.lift import NormalLift, check_dual_lift
 from estimation.configuration.manifold import ProjectionManifold
 from estimation.configuration.proprioception import check_proprioception
 from estimation.particles.factory import make_filter
@@ -74,6 +75,8 @@ class ConfigestEpisodeSettings:
         dual_density: MPF-Ball's weights of its duals, the predicted particles' ``kernel``
             density (sec. 4.2.3) or the readings' exact ``history`` density
             (:mod:`estimation.configuration.history`, which also sets r_b).
+        dual_lift: MPF-Ball's duals on the contact ``surface`` (sec. 5.2) or lifted along
+            the ``normal`` to the commanded side (:mod:`estimation.configuration.lift`).
         proprioception: what both estimators take from the encoders, ``first`` or
             ``steps`` (:mod:`estimation.configuration.proprioception`).
         outlier_log_evidence: both estimators' outlier gate (None: none, the thesis;
@@ -98,6 +101,7 @@ class ConfigestEpisodeSettings:
     dual_share: str = "fixed"
     metric: str = "joint"
     dual_density: str = "kernel"
+    dual_lift: str = "surface"
     proprioception: str = "first"
     outlier_log_evidence: float | None = None
     tactile_error_rate: float | None = None
@@ -124,6 +128,7 @@ class ConfigestEpisodeSettings:
                               "estimator_period_s": 10.0})
         check_proprioception(self.proprioception)
         check_dual_density(self.dual_density, self.metric, self.dual_share)
+        check_dual_lift(self.dual_lift)
 
 
 def commanded_trajectory(spec: ArmSpec, seconds_per_step: float) -> PiecewisePolynomial:
@@ -191,7 +196,9 @@ def run_configest_episode(settings: ConfigestEpisodeSettings, out: Path, *,
                                dual_particles=settings.dual_particles,
                                mixing_rate=settings.mixing_rate,
                                dual_share=settings.dual_share,
-                               outlier_log_evidence=settings.outlier_log_evidence)
+                               outlier_log_evidence=settings.outlier_log_evidence,
+                               dual_lift=(NormalLift(world) if settings.dual_lift == "normal"
+                                          else None))
             n = settings.particles - settings.dual_particles
         system = builder.AddSystem(ConfigurationEstimator(
             world, filt, particles=n, seed=settings.seed * 100 + e + 1, period_s=period,

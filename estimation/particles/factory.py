@@ -6,6 +6,7 @@ from __future__ import annotations
 from estimation.particles.filters import (
     ContactManifold,
     ConventionalParticleFilter,
+    DualLift,
     ManifoldParticleFilter,
 )
 from models.protocols import FilterModel
@@ -18,7 +19,7 @@ particle filter (Alg. 4.2), which needs a contact-manifold representation."""
 def make_filter(kind: str, world: FilterModel, manifold: ContactManifold | None = None, *,
                 dual_particles: int = 25, mixing_rate: float = 0.1,
                 dual_share: str = "fixed", resample_size: int | None = None,
-                outlier_log_evidence: float | None = None
+                outlier_log_evidence: float | None = None, dual_lift: DualLift | None = None
                 ) -> ConventionalParticleFilter | ManifoldParticleFilter:
     """A filter of ``kind`` over ``world``'s transition and observation models.
 
@@ -34,6 +35,8 @@ def make_filter(kind: str, world: FilterModel, manifold: ContactManifold | None 
         resample_size: the CPF's particle count after resampling (default: unchanged).
         outlier_log_evidence: either filter's outlier gate (None: the thesis; see
             :class:`ConventionalParticleFilter`).
+        dual_lift: the MPF's map from manifold samples to states (None: the thesis;
+            :class:`ManifoldParticleFilter`).
 
     Raises:
         ValueError: an unknown kind, or ``mpf`` without a manifold.
@@ -46,5 +49,6 @@ def make_filter(kind: str, world: FilterModel, manifold: ContactManifold | None 
             raise ValueError("the MPF needs a contact-manifold representation")
         return ManifoldParticleFilter(world, manifold, dual_particles=dual_particles,
                                       mixing_rate=mixing_rate, dual_share=dual_share,
-                                      outlier_log_evidence=outlier_log_evidence)
+                                      outlier_log_evidence=outlier_log_evidence,
+                                      dual_lift=dual_lift)
     raise ValueError(f"unknown filter kind {kind!r}; choose from {', '.join(FILTER_KINDS)}")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Protocol
 
 import numpy as np
@@ -21,6 +22,11 @@ from models.protocols import FilterModel
 SURPRISE = 1e-3
 """A reading whose evidence p(o | b+) is below this surprises the belief (a caller may
 flag it; :attr:`UpdateDiagnostics.log_evidence`)."""
+
+DualLift = Callable[[np.ndarray, np.ndarray, Callable[[np.ndarray], np.ndarray]],
+                    tuple[np.ndarray, np.ndarray]]
+"""The MPF's optional map from manifold samples to the states they stand for
+(:class:`ManifoldParticleFilter`'s ``dual_lift``)."""
 
 SAMPLING_FAILURE_LIKELIHOOD = 0.1
 """A dual draw fails when every sample has p(o | s) below this (thesis sec. 4.3.5)."""
@@ -221,11 +227,18 @@ class ManifoldParticleFilter:
             conventional set's evidence, applied only when no dual explains the reading
             either (the draw failed, or the reading is free): a reading the prior does
             not explain but the contact manifold does is what the duals are for.
+        dual_lift: None (the thesis: the manifold's samples are the duals), or a map
+            ``(duals (M, d), observation, log_density) -> (states (M, d), log b+ (M,))``
+            from the manifold's samples to the states the duals stand for, given the
+            density they are weighed by (e.g. :class:`estimation.configuration.lift.
+            NormalLift`, where the state is a commanded-side configuration behind the
+            contact surface).
     """
 
     def __init__(self, world: FilterModel, manifold: ContactManifold, *,
                  dual_particles: int = 25, mixing_rate: float = 0.1,
-                 dual_share: str = "fixed", outlier_log_evidence: float | None = None):
+                 dual_share: str = "fixed", outlier_log_evidence: float | None = None,
+                 dual_lift: DualLift | None = None):
         _check_gate(outlier_log_evidence)
         self.outlier_log_evidence = outlier_log_evidence
         if not 0.0 <= mixing_rate <= 1.0:
@@ -240,6 +253,7 @@ class ManifoldParticleFilter:
         self.dual_particles = dual_particles
         self.mixing_rate = mixing_rate
         self.dual_share = dual_share
+        self.dual_lift = dual_lift
 
     def update(self, belief: ParticleBelief, action: np.ndarray, observation: np.ndarray, *,
                rng: np.random.Generator,
@@ -264,6 +278,11 @@ class ManifoldParticleFilter:
             duals = self.manifold.sample(
                 observation, self.dual_particles, rng=rng,
                 predicted=ParticleBelief(predicted, belief.log_weights, belief.angular))
+            if dual_log_density is None:
+                dual_log_density = partial(log_density, states=predicted, weights=prior_w,
+                                           angular=belief.angular)
+            if self.dual_lift is not None:
+                duals, dual_prior = self.dual_lift(duals, observation, dual_log_density)
             dual_ll = self.world.log_likelihood(observation, duals, action)
             failed = bool(np.all(dual_ll < np.log(SAMPLING_FAILURE_LIKELIHOOD)))
         gate = self.outlier_log_evidence
@@ -271,8 +290,8 @@ class ManifoldParticleFilter:
             return _unweighted(belief, predicted, "outlier", evidence)
         if contact:
             if not failed:
-                dual_prior = (log_density(duals, predicted, prior_w, angular=belief.angular)
-                              if dual_log_density is None else dual_log_density(duals))
+                if self.dual_lift is None:
+                    dual_prior = dual_log_density(duals)
                 dual = _normalised(dual_prior)
                 if dual is not None:
                     dual_used = True

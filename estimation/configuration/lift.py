@@ -1,0 +1,138 @@
+"""Dual particles lifted from the contact surface to the commanded side (beyond the thesis).
+
+The thesis' dual particles are points of the contact manifold: configurations whose
+active sensors touch (sec. 5.2). Here a particle is the *commanded-side* configuration
+(:mod:`models.arms.world`): while the arm presses on an obstacle, the state lies beyond
+the surface, and every configuration on the path behind a surface point ``d`` that the
+projection out of penetration would bring back to ``d`` reads the same contact now. The
+projection (:meth:`ArmWorld.project_free`) steps along the penetrating balls' distance
+gradients, so that path is traced backwards by following the contact normal into the
+obstacle as it turns: ``dq/ds = u(q)``, ``u`` the unit joint motion that drives the active
+sensors deeper (on the 2-DOF arm at a pressed truth 0.023 rad behind the surface, the
+traced path passes within 0.0013 rad of the truth, the straight ray along the normal at
+``d`` only within 0.012). Those states differ in
+their past, though: a state ``lambda`` behind the surface was ``lambda`` farther along
+when the contact began, and at every earlier touch. Weighed as the commanded side, a
+surface dual near a pressed truth has the history of a state that touched later than the
+arm did and missed its earlier touches; measured on the 2-DOF arm under the history
+density (``experiment configest --arm 2dof --dual-density history``, trial 2, step 481),
+the true actual configuration scores log b+ = -21 against -0.2 at the true state, and
+the duals nearest the truth -304, as low as duals on the wrong elbow branch. The fixed
+share phi then spreads over all of them, a tenth of the belief lands on the other branch,
+and the error jumps from 0.05 to 0.75 rad.
+
+:class:`NormalLift` maps each dual to the point of its path, from the surface (depth 0,
+the thesis' dual, always a candidate) to :data:`MAX_DEPTH_RAD`, at which the dual density
+the filter weighs with is largest, on a grid of :data:`DEPTHS` depths (the path itself
+traced in steps of :data:`FLOW_STEP_RAD`).
+The lift is a deterministic map of the dual, so the duals' proposal density is the
+manifold's carried along the map; the map's Jacobian is taken as one (the weights are
+b+ at the lifted duals, as for the surface duals): an approximation.
+
+Cost: :data:`DEPTHS` evaluations of the dual density per dual instead of one; with the
+history density that is the history's length per candidate (``cmanip bench configest``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from models.arms.world import ArmWorld
+
+DUAL_LIFTS = ("surface", "normal")
+"""Where the MPF's duals sit: ``surface`` (the thesis: the manifold's points) or
+``normal`` (lifted along the contact normal, :class:`NormalLift`)."""
+
+MAX_DEPTH_RAD = 0.1
+"""The deepest candidate behind the surface (joint-space norm, rad): how far the commanded
+side can lie beyond the contact, the trajectory's press (0.023 rad measured on the 2-DOF
+arm's second touch)."""
+
+DEPTHS = 11
+"""Candidates per dual, evenly from the surface to :data:`MAX_DEPTH_RAD` (steps of 0.01 rad:
+at the 2-DOF arm's 0.25 m distal link, 2.5 mm of tip motion, within a grid step of the
+1 mm contact tolerance)."""
+
+FLOW_STEP_RAD = 0.0025
+"""The step (rad) of the traced path between candidates (a grid step's quarter)."""
+
+NORMAL_DAMPING = 1e-6
+"""mu (m^2) of ``J J^T + mu I`` in the lift's direction (rows of two active sensors can be
+parallel)."""
+
+
+def check_dual_lift(dual_lift: str) -> None:
+    """Raise ValueError unless ``dual_lift`` is one of :data:`DUAL_LIFTS`."""
+    if dual_lift not in DUAL_LIFTS:
+        raise ValueError(f"dual_lift must be one of {', '.join(DUAL_LIFTS)}, got "
+                         f"{dual_lift!r}")
+
+
+@dataclass(frozen=True)
+class NormalLift:
+    """Lifts duals along their contact normals to the depth the dual density favours
+    (module docstring); the MPF's ``dual_lift``.
+
+    Attributes:
+        world: the arm and its environment.
+        max_depth_rad: the deepest candidate (rad).
+        depths: candidates per dual, the surface included.
+    """
+
+    world: ArmWorld
+    max_depth_rad: float = MAX_DEPTH_RAD
+    depths: int = DEPTHS
+
+    def __post_init__(self):
+        if not self.max_depth_rad > 0 or self.depths < 2:
+            raise ValueError(f"the lift needs max_depth_rad > 0 and depths >= 2, got "
+                             f"{self.max_depth_rad} and {self.depths}")
+
+    def directions(self, duals: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """(K, dof) unit joint motions (rad/rad) that drive every active sensor deeper at
+        the same rate: ``-J^T (J J^T + mu I)^-1 1``, the smallest such motion, normalised
+        (one sensor: minus its distance gradient, eq. 5.4)."""
+        _, J = self.world.sensor_distances(duals, gradient=True, sensors=active)
+        A = np.einsum("kad,kbd->kab", J, J) + NORMAL_DAMPING * np.eye(len(active))[None]
+        rates = np.linalg.solve(A, np.ones((len(duals), len(active), 1)))[..., 0]
+        u = -np.einsum("kad,ka->kd", J, rates)
+        return u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
+
+    def __call__(self, duals: np.ndarray, observation: np.ndarray,
+                 log_density: Callable[[np.ndarray], np.ndarray]
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """The lifted duals (K, dof) rad and the dual density's log at them (K,).
+
+        Args:
+            duals: (K, dof) configurations on the manifold of ``observation`` (rad).
+            observation: (S,) the contact reading they were drawn for.
+            log_density: (M, dof) -> (M,) the predicted belief's log density (up to a
+                constant), the one the filter weighs its duals with.
+        """
+        duals = np.atleast_2d(np.asarray(duals, dtype=float))
+        active = np.flatnonzero(np.asarray(observation, dtype=bool))
+        if len(duals) == 0 or active.size == 0:
+            return duals, log_density(duals)
+        candidates = self.path(duals, active)  # (depths, K, dof)
+        values = log_density(candidates.reshape(-1, duals.shape[1])).reshape(
+            self.depths, len(duals))
+        best = np.argmax(values, axis=0)
+        rows = np.arange(len(duals))
+        return candidates[best, rows], values[best, rows]
+
+    def path(self, duals: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """(depths, K, dof) the candidates: each dual's path into the obstacle (module
+        docstring) at depths evenly from 0 to ``max_depth_rad`` (rad), traced by steps of
+        at most :data:`FLOW_STEP_RAD` along :meth:`directions`."""
+        spacing = self.max_depth_rad / (self.depths - 1)
+        substeps = max(1, int(np.ceil(spacing / FLOW_STEP_RAD - 1e-9)))
+        q = duals.copy()
+        out = [q]
+        for _ in range(self.depths - 1):
+            for _ in range(substeps):
+                q = self.world.normalise(q + (spacing / substeps) * self.directions(q, active))
+            out.append(q)
+        return np.stack(out)
