@@ -10,9 +10,9 @@ gradients, so that path is traced backwards by following the contact normal into
 obstacle as it turns: ``dq/ds = u(q)``, ``u`` the unit joint motion that drives the active
 sensors deeper (on the 2-DOF arm at a pressed truth 0.023 rad behind the surface, the
 traced path passes within 0.0013 rad of the truth, the straight ray along the normal at
-``d`` only within 0.012). Those states differ in
-their past, though: a state ``lambda`` behind the surface was ``lambda`` farther along
-when the contact began, and at every earlier touch. Weighed as the commanded side, a
+``d`` only within 0.012). Those states differ in their past, though: a state deeper
+behind the surface was as much farther along when the contact began, and at every earlier
+touch. Weighed as the commanded side, a
 surface dual near a pressed truth has the history of a state that touched later than the
 arm did and missed its earlier touches; measured on the 2-DOF arm under the history
 density (``experiment configest --arm 2dof --dual-density history``, trial 2, step 481),
@@ -29,8 +29,10 @@ The lift is a deterministic map of the dual, so the duals' proposal density is t
 manifold's carried along the map; the map's Jacobian is taken as one (the weights are
 b+ at the lifted duals, as for the surface duals): an approximation.
 
-Cost: :data:`DEPTHS` evaluations of the dual density per dual instead of one; with the
-history density that is the history's length per candidate (``cmanip bench configest``).
+Cost: :data:`DEPTHS` evaluations of the dual density per dual instead of one, each over
+the whole history with the history density: the 2-DOF study of 10 experiments under the
+history density took 12.5 min with the lift against 1.5 min without (measured 2026-12-07,
+2 workers).
 """
 
 from __future__ import annotations
