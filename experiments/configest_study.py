@@ -33,7 +33,7 @@ from estimation.configuration.history import (
     check_dual_density,
     dual_ball_radius,
 )
-from estimation.configuration.lift import NormalLift, check_dual_lift
+from estimation.configuration.lift import check_dual_lift, make_dual_lift
 from estimation.configuration.manifold import (
     ExplicitTwoLinkManifold,
     ProjectionManifold,
@@ -188,7 +188,7 @@ def build_filter(world: ArmWorld, kind: str, settings: ConfigestSettings, *,
     filt = make_filter("mpf", world, manifold, dual_particles=settings.dual_particles,
                        mixing_rate=settings.mixing_rate, dual_share=settings.dual_share,
                        outlier_log_evidence=outlier_log_evidence,
-                       dual_lift=NormalLift(world) if settings.dual_lift == "normal" else None)
+                       dual_lift=make_dual_lift(world, settings.dual_lift))
     return filt, settings.particles - settings.dual_particles, manifold
 
 

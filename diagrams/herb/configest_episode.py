@@ -33,7 +33,7 @@ from diagrams.herb.configuration import ArmBeliefDrawer, ConfigurationEstimator,
 from diagrams.herb.station import add_herb_plant, add_meshcat
 from diagrams.tactile_sensor import TactileSensor
 from estimation.configuration.history import check_dual_density, dual_ball_radius
-from estimation.configuration.lift import NormalLift, check_dual_lift
+from estimation.configuration.lift import check_dual_lift, make_dual_lift
 from estimation.configuration.manifold import ProjectionManifold
 from estimation.configuration.proprioception import check_proprioception
 from estimation.particles.factory import make_filter
@@ -197,8 +197,7 @@ def run_configest_episode(settings: ConfigestEpisodeSettings, out: Path, *,
                                mixing_rate=settings.mixing_rate,
                                dual_share=settings.dual_share,
                                outlier_log_evidence=settings.outlier_log_evidence,
-                               dual_lift=(NormalLift(world) if settings.dual_lift == "normal"
-                                          else None))
+                               dual_lift=make_dual_lift(world, settings.dual_lift))
             n = settings.particles - settings.dual_particles
         system = builder.AddSystem(ConfigurationEstimator(
             world, filt, particles=n, seed=settings.seed * 100 + e + 1, period_s=period,

@@ -73,6 +73,13 @@ def check_dual_lift(dual_lift: str) -> None:
                          f"{dual_lift!r}")
 
 
+def make_dual_lift(world: ArmWorld, dual_lift: str) -> NormalLift | None:
+    """The MPF's ``dual_lift`` for the setting ``dual_lift`` (one of :data:`DUAL_LIFTS`):
+    None for ``surface`` (the thesis), :class:`NormalLift` for ``normal``."""
+    check_dual_lift(dual_lift)
+    return NormalLift(world) if dual_lift == "normal" else None
+
+
 @dataclass(frozen=True)
 class NormalLift:
     """Lifts duals along their contact normals to the depth the dual density favours

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from estimation.configuration.lift import NormalLift, check_dual_lift
+from estimation.configuration.lift import NormalLift, check_dual_lift, make_dual_lift
 from estimation.configuration.manifold import ExplicitTwoLinkManifold
 from estimation.particles.belief import ParticleBelief
 from estimation.particles.factory import make_filter
@@ -83,7 +83,24 @@ def test_an_identity_lift_leaves_the_filter_unchanged(world, pressed):
 
 def test_bad_lift_settings_are_refused(world):
     check_dual_lift("normal")
+    assert make_dual_lift(world, "surface") is None
+    assert isinstance(make_dual_lift(world, "normal"), NormalLift)
     with pytest.raises(ValueError, match="dual_lift"):
         check_dual_lift("deep")
     with pytest.raises(ValueError, match="max_depth_rad"):
         NormalLift(world, max_depth_rad=0.0)
+
+
+def test_a_bad_dual_lift_in_a_study_config_names_the_file_and_field(tmp_path, capsys):
+    from cmanip.cli import main
+
+    path = tmp_path / "bad.yaml"
+    path.write_text("dual_lift: deep\n")
+    assert main(["experiment", "configest", "--config", str(path), "--arm", "2dof",
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err and "dual_lift must be one of surface, normal" in err
+    with pytest.raises(SystemExit) as exit_:  # argparse's own refusal of a bad choice
+        main(["configest", "run", "--dual-lift", "deep", "--out", str(tmp_path / "o")])
+    assert exit_.value.code == 2
+    assert "invalid choice: 'deep'" in capsys.readouterr().err
