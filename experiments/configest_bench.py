@@ -16,10 +16,12 @@ same run.
 from __future__ import annotations
 
 import time
+from functools import partial
 
 import numpy as np
 
 from estimation.configuration.history import ReadingHistory
+from estimation.configuration.lift import NormalLift
 from estimation.configuration.projection import project
 from experiments.configest_study import ConfigestSettings, arm_world, run_filter
 from models.arms.environment import drake_signed_distance
@@ -72,6 +74,13 @@ def bench_arm(arm: str, seed: int) -> dict:
     duals = seeds[:settings.dual_particles]
     history.log_density(world, duals, commanded[-1])  # compiled before timing
     _, history_s = _timed(history.log_density, world, duals, commanded[-1])
+    # the normal lift of the same number of duals, projected onto the first touch's manifold
+    lift = NormalLift(world)
+    surface = project(world, duals, active).states
+    _, path_s = _timed(lift.path, surface, active)
+    density = partial(history.log_density, world, commanded=commanded[-1])
+    _, surface_density_s = _timed(density, surface)
+    _, lift_s = _timed(lift, surface, trajectory.contacts[first], density)
     # signed distance: Drake per point against the compiled batch
     centres, _ = world.chain.centers(seeds[:20])
     points = centres.reshape(-1, 3)
@@ -94,6 +103,9 @@ def bench_arm(arm: str, seed: int) -> dict:
         "mpf_ball_history_contact_update_ms_p90": float(np.percentile(history_contact_ms, 90)),
         "history_density_ms_last_step": history_s * 1e3,
         "history_density_steps": len(history.readings),
+        "lift_ms_last_step": lift_s * 1e3,
+        "lift_path_ms_last_step": path_s * 1e3,
+        "lift_cost_ratio_to_density": lift_s / surface_density_s,
         "projection_ms_per_seed": float(stats.seconds * 1e3 / max(stats.seeds, 1)),
         "projection_iterations_per_seed": stats.iterations / max(stats.seeds, 1),
         "projection_failure_rate": stats.failure_rate,
@@ -117,7 +129,9 @@ def run_configest_bench(arms: tuple[str, ...], *, seed: int = 0) -> dict:
               f"{entry['projection_share_of_contact_updates']:.0%} projecting); with the "
               f"history density {entry['mpf_ball_history_contact_update_ms']:.1f} ms with "
               f"contact ({entry['history_density_ms_last_step']:.1f} ms for the density at "
-              f"step {entry['history_density_steps']}); "
+              f"step {entry['history_density_steps']}; the normal lift "
+              f"{entry['lift_ms_last_step']:.1f} ms there, "
+              f"{entry['lift_cost_ratio_to_density']:.1f} x the density); "
               f"signed distance {entry['drake_signed_distance_us_per_point']:.1f} us/point "
               f"in Drake, {entry['compiled_signed_distance_us_per_point']:.2f} compiled; "
               f"GD {entry['root_finders']['gd']['ms_per_seed']:.2f} ms/seed "

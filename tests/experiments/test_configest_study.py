@@ -48,6 +48,8 @@ def test_bench_reports_update_times_and_the_signed_distance_speedup(tmp_path):
     assert entry["mpf_ball_history_contact_update_ms"] > 0
     assert entry["history_density_steps"] == entry["updates"] - 1
     assert entry["history_density_ms_last_step"] > 0
+    assert entry["lift_ms_last_step"] > entry["lift_path_ms_last_step"] > 0
+    assert entry["lift_cost_ratio_to_density"] > 1
     assert set(entry["root_finders"]) == {"gd", "lm"}
     assert entry["signed_distance_speedup"] > 1
 
