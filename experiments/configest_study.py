@@ -82,8 +82,9 @@ class ConfigestSettings:
             :mod:`estimation.configuration.proprioception`).
         dual_density: how the MPFs weigh their duals, ``kernel`` (sec. 4.2.3) or
             ``history`` (see :mod:`estimation.configuration.history`).
-        dual_lift: where the MPFs' duals sit, ``surface`` (sec. 5.2) or ``normal``
-            (lifted to the commanded side; see :mod:`estimation.configuration.lift`).
+        dual_lift: where the MPFs' duals sit, ``surface`` (sec. 5.2), ``normal`` or
+            ``normal-grid`` (lifted to the commanded side; see
+            :mod:`estimation.configuration.lift`).
     """
 
     arms: tuple[str, ...] = ARMS
