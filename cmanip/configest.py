@@ -82,8 +82,8 @@ def mpf_variant_options(parser, defaults) -> None:
     setting_option(parser, "--dual-lift", defaults.dual_lift,
                    "where the MPF's duals sit (surface: on the contact manifold, sec. 5.2; "
                    "normal: lifted along the contact normal to the commanded-side state the "
-                   "dual density favours; normal-grid: the same on a grid of depths "
-                   "alone, without the bisection)", choices=DUAL_LIFTS)
+                   "dual density favours, on a grid of depths; normal-refined: the same, "
+                   "then bisected around the grid's best depth)", choices=DUAL_LIFTS)
 
 
 def proprioception_option(parser, defaults) -> None:

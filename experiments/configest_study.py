@@ -83,7 +83,7 @@ class ConfigestSettings:
         dual_density: how the MPFs weigh their duals, ``kernel`` (sec. 4.2.3) or
             ``history`` (see :mod:`estimation.configuration.history`).
         dual_lift: where the MPFs' duals sit, ``surface`` (sec. 5.2), ``normal`` or
-            ``normal-grid`` (lifted to the commanded side; see
+            ``normal-refined`` (lifted to the commanded side; see
             :mod:`estimation.configuration.lift`).
     """
 

@@ -23,19 +23,24 @@ and the error jumps from 0.05 to 0.75 rad.
 
 :class:`NormalLift` maps each dual to the point of its path, from the surface (depth 0,
 the thesis' dual, always a candidate) to :data:`MAX_DEPTH_RAD`, at which the dual density
-the filter weighs with is largest: on a grid of :data:`DEPTHS` depths, then bisected
-around the grid's best down to the traced path's step :data:`FLOW_STEP_RAD`. The
-refinement matters: on the 2-DOF arm's experiment 2, MPF-Particle ends at 0.050 rad with
-the grid alone, 0.037 with 41 grid depths (0.0025 rad apart), 0.022 without the lift.
-Where the density is flat along the path (every reading explained over a stretch of
-depths), drawing the depth in proportion to the density instead of taking its largest
-value changed nothing (0.050 and 0.051 on experiments 2 and 3, against 0.050 and 0.049).
+the filter weighs with is largest, on a grid of :data:`DEPTHS` depths (``normal``);
+``normal-refined`` then bisects around the grid's best down to the traced path's step
+:data:`FLOW_STEP_RAD`. The grid costs the lift's precision: on the 2-DOF arm's experiment
+2, MPF-Particle ends at 0.050 rad with the grid, 0.037 with 41 grid depths (0.0025 rad
+apart), 0.022 without the lift. The bisection does not recover it: over the 2-DOF study's
+10 experiments under the history density every variant ends at 0.048-0.049 rad with
+either (MPF-Particle's final error refined minus grid +0.000 +- 0.004, paired, 95 %), at
+16 min against 12.5 (measured 2026-12-07, 2 workers), so the grid is the default and the
+bisection stays selectable for the comparison. Where the density is flat along the path
+(every reading explained over a stretch of depths), drawing the depth in proportion to
+the density instead of taking its largest value changed nothing either (0.050 and 0.051
+on experiments 2 and 3, against 0.050 and 0.049; not kept).
 The lift is a deterministic map of the dual, so the duals' proposal density is the
 manifold's carried along the map; the map's Jacobian is taken as one (the weights are
 b+ at the lifted duals, as for the surface duals): an approximation.
 
-Cost: :data:`DEPTHS` evaluations of the dual density per dual instead of one, and four
-more for the bisection, each over the whole history with the history density, deeper
+Cost: :data:`DEPTHS` evaluations of the dual density per dual instead of one (and four
+more for the bisection), each over the whole history with the history density, deeper
 candidates costing more (their past configurations lie deeper inside the obstacle, and
 projecting them out takes more iterations: ``bench configest``'s
 ``lift_cost_ratio_to_density``, 17.5 for the grid alone at the 2-DOF run's end): the
@@ -53,10 +58,10 @@ import numpy as np
 
 from models.arms.world import ArmWorld
 
-DUAL_LIFTS = ("surface", "normal", "normal-grid")
+DUAL_LIFTS = ("surface", "normal", "normal-refined")
 """Where the MPF's duals sit: ``surface`` (the thesis: the manifold's points), ``normal``
-(lifted along the contact normal, :class:`NormalLift`) or ``normal-grid`` (the same on the
-grid of depths alone, without the bisection: the lift as first measured)."""
+(lifted along the contact normal to the best of a grid of depths, :class:`NormalLift`) or
+``normal-refined`` (the same, then bisected around the grid's best depth)."""
 
 MAX_DEPTH_RAD = 0.1
 """The deepest candidate behind the surface (joint-space norm, rad): how far the commanded
@@ -89,7 +94,7 @@ def make_dual_lift(world: ArmWorld, dual_lift: str) -> NormalLift | None:
     check_dual_lift(dual_lift)
     if dual_lift == "surface":
         return None
-    return NormalLift(world, refine=dual_lift == "normal")
+    return NormalLift(world, refine=dual_lift == "normal-refined")
 
 
 @dataclass(frozen=True)
@@ -101,14 +106,14 @@ class NormalLift:
         world: the arm and its environment.
         max_depth_rad: the deepest candidate (rad).
         depths: grid candidates per dual, the surface included.
-        refine: bisect around the best grid depth down to one traced step (False: the
-            grid alone, as the first measurements of 2026-12-07 were taken).
+        refine: bisect around the best grid depth down to one traced step (measured no
+            better at 2-DOF, module docstring).
     """
 
     world: ArmWorld
     max_depth_rad: float = MAX_DEPTH_RAD
     depths: int = DEPTHS
-    refine: bool = True
+    refine: bool = False
 
     def __post_init__(self):
         if not self.max_depth_rad > 0 or self.depths < 2:

@@ -50,7 +50,7 @@ def test_a_surface_dual_is_lifted_to_the_pressed_state_behind_it(world, pressed)
 
 def test_the_bisection_finds_a_depth_between_the_grid_points(world, pressed):
     _, q_true = pressed
-    refined, grid = NormalLift(world), NormalLift(world, refine=False)
+    refined, grid = NormalLift(world, refine=True), NormalLift(world)
     assert refined.substeps == 4
     traced = refined.path(q_true[None], np.array([0]))
     target = traced[6, 0]  # 0.015 rad deep, halfway between two grid depths
@@ -99,8 +99,8 @@ def test_an_identity_lift_leaves_the_filter_unchanged(world, pressed):
 def test_bad_lift_settings_are_refused(world):
     check_dual_lift("normal")
     assert make_dual_lift(world, "surface") is None
-    assert make_dual_lift(world, "normal").refine
-    assert not make_dual_lift(world, "normal-grid").refine
+    assert not make_dual_lift(world, "normal").refine
+    assert make_dual_lift(world, "normal-refined").refine
     with pytest.raises(ValueError, match="dual_lift"):
         check_dual_lift("deep")
     with pytest.raises(ValueError, match="max_depth_rad"):
@@ -115,7 +115,7 @@ def test_a_bad_dual_lift_in_a_study_config_names_the_file_and_field(tmp_path, ca
     assert main(["experiment", "configest", "--config", str(path), "--arm", "2dof",
                  "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
-    assert str(path) in err and "dual_lift must be one of surface, normal, normal-grid" in err
+    assert str(path) in err and "dual_lift must be one of surface, normal, normal-refined" in err
     with pytest.raises(SystemExit) as exit_:  # argparse's own refusal of a bad choice
         main(["configest", "run", "--dual-lift", "deep", "--out", str(tmp_path / "o")])
     assert exit_.value.code == 2
